@@ -1,0 +1,94 @@
+"""The ``mstc`` command: one entry point, one module per sub-command.
+
+Each sub-command lives in its own module exposing ``add_arguments(parser)`` and
+``run(args) -> int``; modules are imported only when their command runs, so ``mstc plan``
+never pays for importing zenoh. User mistakes surface as PlannerError / UsageError and are
+printed as one line, never as a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+from collections.abc import Sequence
+
+from planner.errors import PlannerError
+
+# name -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "plan": ("deploy.cmd_plan", "plan offline MSTC coverage of a map and print or plot it"),
+    "router": ("deploy.cmd_router", "run the embedded Zenoh router"),
+    "simhw": ("simhw.main", "run the simulated RV-400 hardware process (the world)"),
+    "agent": ("agent.main", "run one robot's agent process"),
+    "up": ("deploy.cmd_up", "start a local fleet: router, simhw and N agents"),
+    "kill": ("deploy.cmd_kill", "kill a robot's agent (or fail its body with --hw)"),
+    "down": ("deploy.cmd_down", "stop the fleet of a run directory"),
+    "monitor": ("deploy.cmd_monitor", "watch a mission live (terminal view or --plain)"),
+    "replay": ("deploy.cmd_replay", "replay a recorded mission through the live view"),
+    "report": ("deploy.cmd_report", "summarise and verify a recorded mission"),
+    "tree-cover": ("deploy.cmd_tree_cover", "connected coverage of a tree (NCOCTA / COCTA)"),
+    "repro-mstc": ("deploy.repro_mstc", "reproduce paper 003 Fig. 4/5 (NB/BT/opt MSTC)"),
+    "repro-createtree": ("deploy.repro_createtree", "reproduce paper 000 (Create Tree)"),
+    "repro-tmstc": ("deploy.repro_tmstc", "reproduce paper 002 Tables II/III (TMSTC*)"),
+    "repro-ormstc": ("deploy.repro_ormstc", "reproduce paper 004 Fig. 4 (ORMSTC)"),
+    "repro-cocta": ("deploy.repro_cocta", "reproduce paper 001 Fig. 4 (NCOCTA/COCTA)"),
+}
+
+
+class UsageError(Exception):
+    """A command-line mistake found after argument parsing (bad combination, bad value)."""
+
+
+def _available() -> dict[str, tuple[str, str]]:
+    found = {}
+    for name, (module, text) in COMMANDS.items():
+        if importlib.util.find_spec(module) is not None:
+            found[name] = (module, text)
+    return found
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mstc", description="Multi-robot spanning-tree coverage on Eclipse Zenoh.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, (module_name, text) in _available().items():
+        module = importlib.import_module(module_name)
+        command = sub.add_parser(name, help=text, description=text)
+        module.add_arguments(command)
+        command.set_defaults(_module=module)
+    return parser
+
+
+def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
+    """A parser that imports only the module of the command being run (fast start-up)."""
+    commands = _available()
+    name = next((a for a in argv if not a.startswith("-")), None)
+    if name not in commands:
+        return build_parser()
+    parser = argparse.ArgumentParser(prog="mstc")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    module_name, text = commands[name]
+    module = importlib.import_module(module_name)
+    command = sub.add_parser(name, help=text, description=text)
+    module.add_arguments(command)
+    command.set_defaults(_module=module)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = _parser_for(argv)
+    args = parser.parse_args(argv)
+    try:
+        return int(args._module.run(args) or 0)
+    except (PlannerError, UsageError) as error:
+        print(f"mstc {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

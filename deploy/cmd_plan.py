@@ -1,0 +1,128 @@
+"""``mstc plan``: load a map, build a tree, allocate the cycle, print or plot the plan."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from deploy.cli import UsageError
+from planner.grid import work_area
+from planner.maps import resolve_world
+from planner.metrics import PlanMetrics, plan_metrics
+from planner.pipeline import make_plan
+from planner.placement import parse_starts, random_starts
+from planner.trees import TREE_KINDS, build_tree
+from planner.types import Plan
+
+ALGOS = ("nb", "bt", "opt")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--map", required=True, metavar="FILE|NAME",
+                        help="map file (.txt, .map, .yaml, .pgm, .png) or a builtin world name")
+    parser.add_argument("--cell-size", type=int, default=None, metavar="PX",
+                        help="pixels per sub-cell (tool width) for image maps")
+    robots = parser.add_mutually_exclusive_group(required=True)
+    robots.add_argument("--robots", metavar="R,C;R,C;...",
+                        help="robot starts as sub-cell coordinates (row, col)")
+    robots.add_argument("--random-robots", type=int, metavar="K",
+                        help="place K robots at random free sub-cells (see --seed)")
+    parser.add_argument("--seed", type=int, default=0, help="seed for placement and trees")
+    parser.add_argument("--algo", choices=ALGOS, default="opt",
+                        help="nb: non-backtracking, bt: simple backtracking, opt: optimal")
+    parser.add_argument("--tree", choices=TREE_KINDS, default="dfs", help="spanning tree kind")
+    parser.add_argument("--speeds", metavar="S,S,...",
+                        help="per-robot speeds (opt only), sub-cells per time unit")
+    parser.add_argument("--fuel", metavar="F,F,...",
+                        help="per-robot fuel limits in moves (opt only; '-' for unlimited)")
+    parser.add_argument("--json", action="store_true", help="print the plan as JSON")
+    parser.add_argument("--plot", metavar="OUT.png", help="draw map, tree and paths")
+
+
+def _floats(text: str | None, k: int, what: str) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError as error:
+        raise UsageError(f"--{what}: expected {k} comma-separated numbers ({error})") from None
+    if len(values) != k or any(v <= 0 for v in values):
+        raise UsageError(f"--{what}: expected {k} positive numbers, got {text!r}")
+    return values
+
+
+def _fuel(text: str | None, k: int) -> list[int | None] | None:
+    if text is None:
+        return None
+    items = text.split(",")
+    if len(items) != k:
+        raise UsageError(f"--fuel: expected {k} values, got {len(items)}")
+    try:
+        return [None if v.strip() in ("-", "") else int(v) for v in items]
+    except ValueError:
+        raise UsageError(f"--fuel: expected integers or '-', got {text!r}") from None
+
+
+def plan_to_json(plan: Plan, metrics: PlanMetrics) -> dict[str, Any]:
+    """The stable JSON shape other tools read (coordinates are sub-cells, row then col)."""
+    return {
+        "n": plan.n,
+        "k": plan.k,
+        "algo": plan.algo,
+        "makespan": plan.makespan,
+        "makespan_time": plan.makespan_time,
+        "lower_bound": metrics.lower_bound,
+        "robots": [
+            {"start": list(r.start), "steps": r.steps, "speed": r.speed,
+             "turns": metrics.turns[r.robot],
+             "path": [list(p) for p in r.path]}
+            for r in plan.robots
+        ],
+    }
+
+
+def summary_lines(plan: Plan, metrics: PlanMetrics, tree: str) -> list[str]:
+    lines = [
+        f"map cells: n = {plan.n} sub-cells, k = {plan.k} robots, tree = {tree}, "
+        f"algo = {plan.algo}",
+        f"makespan: {plan.makespan} moves (lower bound {metrics.lower_bound}, "
+        f"{plan.makespan / max(metrics.lower_bound, 1):.2f}x)",
+    ]
+    if any(r.speed != 1.0 for r in plan.robots):
+        lines.append(f"makespan time: {plan.makespan_time:.2f} (moves / speed)")
+    lines.append("robot  start        steps  turns  speed")
+    for r in plan.robots:
+        lines.append(f"{r.robot:5d}  {str(r.start):11s} {r.steps:6d} "
+                     f"{metrics.turns[r.robot]:6d}  {r.speed:5.2f}")
+    return lines
+
+
+def run(args: argparse.Namespace) -> int:
+    grid = resolve_world(args.map, cell_size=args.cell_size)
+    if args.robots is not None:
+        starts = parse_starts(args.robots)
+    else:
+        starts = random_starts(grid, args.random_robots, args.seed)
+    k = len(starts)
+    speeds = _floats(args.speeds, k, "speeds")
+    fuel = _fuel(args.fuel, k)
+    if (speeds or fuel) and args.algo != "opt":
+        raise UsageError("--speeds and --fuel need --algo opt (paper 003, section 4.3)")
+    area = work_area(grid, starts)
+    tree = build_tree(area.cells, args.tree, seed=args.seed)
+    plan = make_plan(area, tree, args.algo, speeds=speeds, fuel=fuel)
+    metrics = plan_metrics(plan)
+    if args.json:
+        json.dump(plan_to_json(plan, metrics), sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        print("\n".join(summary_lines(plan, metrics, args.tree)))
+    if args.plot:
+        from deploy.plot_plan import plot_plan
+
+        plot_plan(plan, area.grid, args.plot)
+        if not args.json:
+            print(f"plot written to {args.plot}")
+    return 0

@@ -1,0 +1,38 @@
+"""Robot start placements: parsing user-given starts and seeded random placements."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planner.errors import RobotPlacementError
+from planner.grid import coarsen, expand, largest_component
+from planner.types import OccupancyGrid, SubCell
+
+
+def parse_starts(text: str) -> tuple[SubCell, ...]:
+    """Parse ``"r,c;r,c;..."`` into sub-cell coordinates, with a readable error."""
+    starts: list[SubCell] = []
+    for number, item in enumerate(filter(None, (p.strip() for p in text.split(";")))):
+        parts = [p.strip() for p in item.split(",")]
+        if len(parts) != 2 or not all(p.lstrip("-").isdigit() for p in parts):
+            raise RobotPlacementError(
+                f"robot {number}: expected 'row,col' (two integers), got {item!r}")
+        starts.append((int(parts[0]), int(parts[1])))
+    if not starts:
+        raise RobotPlacementError(f"no robot positions in {text!r}; expected 'r,c;r,c;...'")
+    return tuple(starts)
+
+
+def random_starts(grid: OccupancyGrid, k: int, seed: int) -> tuple[SubCell, ...]:
+    """``k`` distinct random sub-cells of the largest free component, from ``seed``."""
+    if k < 1:
+        raise RobotPlacementError(f"need at least one robot, got {k}")
+    component = largest_component(coarsen(grid))
+    candidates = np.argwhere(expand(component))
+    if len(candidates) < k:
+        raise RobotPlacementError(
+            f"cannot place {k} robots: the largest free component has only "
+            f"{len(candidates)} sub-cells")
+    rng = np.random.default_rng(seed)
+    chosen = rng.choice(len(candidates), size=k, replace=False)
+    return tuple((int(candidates[i][0]), int(candidates[i][1])) for i in chosen)

@@ -1,0 +1,171 @@
+"""Value types of the simulated RV-400 world: poses, outcomes, readings and ground-truth records.
+
+Coordinates are sub-cells (row, col) with rows growing downwards, as in planner.types. Headings
+are 0 = north (row - 1), 1 = east (col + 1), 2 = south, 3 = west; a left turn is -1 mod 4.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum, IntEnum
+
+SubCell = tuple[int, int]
+
+SENSORS: tuple[str, ...] = ("front", "left", "right")
+
+
+class Heading(IntEnum):
+    N = 0
+    E = 1
+    S = 2
+    W = 3
+
+    @property
+    def delta(self) -> SubCell:
+        """One sub-cell step in this heading, as (d_row, d_col)."""
+        return _DELTAS[self]
+
+    def turned(self, side: Side) -> Heading:
+        return Heading((self + (1 if side is Side.RIGHT else -1)) % 4)
+
+    def towards(self, sensor: str) -> Heading:
+        """The heading a sonar looks along: "front", "left" or "right" of this heading."""
+        if sensor == "front":
+            return self
+        return self.turned(Side.LEFT if sensor == "left" else Side.RIGHT)
+
+
+_DELTAS: dict[Heading, SubCell] = {
+    Heading.N: (-1, 0), Heading.E: (0, 1), Heading.S: (1, 0), Heading.W: (0, -1)}
+
+
+class Side(Enum):
+    LEFT = "left"
+    RIGHT = "right"
+
+
+class BodyStatus(Enum):
+    ALIVE = "alive"
+    FAILED = "failed"
+    FROZEN = "frozen"
+
+
+class SonarMode(Enum):
+    """``ALL``: one sense command reads any of the three sonars. ``ONE_AT_A_TIME``: one
+    direction per command, the RV-400's limitation (paper 004, section IV)."""
+
+    ALL = "all"
+    ONE_AT_A_TIME = "one-at-a-time"
+
+
+class BumpCause(Enum):
+    OBSTACLE = "obstacle"
+    EDGE = "edge"
+    BODY = "body"
+
+
+@dataclass(frozen=True)
+class Pose:
+    row: int
+    col: int
+    heading: Heading = Heading.N
+
+    @property
+    def sub(self) -> SubCell:
+        return (self.row, self.col)
+
+    def ahead(self, steps: int = 1) -> SubCell:
+        dr, dc = self.heading.delta
+        return (self.row + steps * dr, self.col + steps * dc)
+
+    def as_tuple(self) -> tuple[int, int, int]:
+        return (self.row, self.col, int(self.heading))
+
+
+@dataclass(frozen=True)
+class Odometry:
+    """What the wheel encoders measured during one step (reset after each step)."""
+
+    forward_m: float = 0.0
+    turn_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Sensor and odometry options of a world.
+
+    ``sonar_range`` is the farthest sub-cell a sonar reports; ``odometry_noise`` is the standard
+    deviation of the odometry error relative to the commanded motion (0.05 = 5 %).
+    ``sub_cell_m`` is the tool size D in metres.
+    """
+
+    sonar_mode: SonarMode = SonarMode.ALL
+    sonar_range: int = 8
+    odometry_noise: float = 0.0
+    sub_cell_m: float = 0.4
+
+    def __post_init__(self) -> None:
+        if self.sonar_range < 1:
+            raise ValueError(f"sonar_range must be at least 1, got {self.sonar_range}")
+        if not self.odometry_noise >= 0.0:
+            raise ValueError(f"odometry_noise must be >= 0, got {self.odometry_noise}")
+        if not self.sub_cell_m > 0.0:
+            raise ValueError(f"sub_cell_m must be > 0, got {self.sub_cell_m}")
+
+
+@dataclass(frozen=True)
+class BodyView:
+    """A snapshot of one body: where it is, whether it can act, where it is moving to."""
+
+    robot: int
+    pose: Pose
+    status: BodyStatus
+    target: SubCell | None = None
+
+
+@dataclass(frozen=True)
+class MoveOutcome:
+    """Result of starting a forward step: either the target is reserved or the body bumped."""
+
+    robot: int
+    start: Pose
+    target: SubCell
+    bumped: bool
+    cause: BumpCause | None = None
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """A finished motion: the pose it ended in and the odometry of that step alone."""
+
+    robot: int
+    pose: Pose
+    odometry: Odometry
+    bumped: bool = False
+
+
+@dataclass(frozen=True)
+class SonarReading:
+    """Range per sensor read, in sub-cells from the body's own sub-cell to the first blocked
+    sub-cell (1 = the adjacent sub-cell is blocked); None = nothing within the sonar range."""
+
+    ranges: dict[str, int | None] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class CoverRecord:
+    """A body entered (or started in) a sub-cell; ``visits`` counts entries so far, all robots."""
+
+    robot: int
+    sub: SubCell
+    time: float
+    visits: int
+
+
+@dataclass(frozen=True)
+class BumpRecord:
+    robot: int
+    at: SubCell
+    into: SubCell
+    cause: BumpCause
+    time: float
