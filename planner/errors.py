@@ -49,3 +49,23 @@ class MapReadError(PlannerError):
     def __init__(self, path: str, message: str) -> None:
         super().__init__(f"{path}: {message}")
         self.path = path
+
+
+class TreeError(PlannerError):
+    """Cells cannot carry the requested spanning tree: disconnected, bad root, edge or kind."""
+
+
+class UnsupportedPlanError(PlannerError):
+    """A plan or failure schedule the takeover simulator cannot run (e.g. non-unit speeds)."""
+
+
+class UnknownAlgorithmError(PlannerError):
+    """An algorithm name that no dispatcher knows (the message lists the known names)."""
+
+
+class RobotParameterError(PlannerError):
+    """Per-robot speeds or fuel limits are malformed: wrong count, non-positive or non-finite."""
+
+
+class TreeFormatError(MapFormatError):
+    """A ``.tree`` file (connected tree coverage) is malformed: file, line and expectation."""

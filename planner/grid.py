@@ -26,7 +26,7 @@ def coarsen(grid: OccupancyGrid) -> CoarseGrid:
     h, w = grid.shape
     fine = grid.free[: h - h % 2, : w - w % 2]
     blocks = fine.reshape(h // 2, 2, w // 2, 2)
-    return CoarseGrid(blocks.all(axis=(1, 3)))
+    return CoarseGrid(np.asarray(blocks.all(axis=(1, 3)), dtype=np.bool_))
 
 
 def label_components(free: BoolArray) -> tuple[IntArray, int]:

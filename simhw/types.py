@@ -169,3 +169,12 @@ class BumpRecord:
     into: SubCell
     cause: BumpCause
     time: float
+
+
+@dataclass(frozen=True)
+class ServerOptions:
+    """How the server runs: sim seconds per wall second (0 = as fast as possible) and how
+    long (wall seconds) a command to a frozen body is held before it is answered "frozen"."""
+
+    time_scale: float = 0.0
+    frozen_hold_s: float = 600.0
