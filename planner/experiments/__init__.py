@@ -1,0 +1,1 @@
+"""Pure experiment generators: seeded instances and per-trial measurements for the papers."""
