@@ -94,7 +94,7 @@ def summary_lines(plan: Plan, metrics: PlanMetrics, tree: str) -> list[str]:
         lines.append(f"makespan time: {plan.makespan_time:.2f} (moves / speed)")
     lines.append("robot  start        steps  turns  speed")
     for r in plan.robots:
-        lines.append(f"{r.robot:5d}  {str(r.start):11s} {r.steps:6d} "
+        lines.append(f"{r.robot:5d}  {r.start!s:11s} {r.steps:6d} "
                      f"{metrics.turns[r.robot]:6d}  {r.speed:5.2f}")
     return lines
 

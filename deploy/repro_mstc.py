@@ -73,7 +73,8 @@ def _plot(means: dict[tuple[int, int, int], tuple[int, np.ndarray]], path: Path)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = [(0, None, "empty grid, random starts"), (80, None, "80 obstacle cells")]
+    panels: list[tuple[int, int | None, str]] = [
+        (0, None, "empty grid, random starts"), (80, None, "80 obstacle cells")]
     panels += [(0, b, f"empty grid, {b} base(s)")
                for b in sorted({key[2] for key in means if key[2] < key[1]})]
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.6), squeeze=False)
