@@ -60,6 +60,7 @@ class SimConfig:
     max_steps: int | None = None
     claim_wait: float | None = None  # default: 2 x max delay - 1, the tight safe bound
     watch_interval: float = 10.0
+    announce_connections: bool = False
     kinematics: KinematicParams = RV400
 
 
@@ -119,7 +120,8 @@ class LockstepSim:
         self.machines = [OrmstcMachine(MachineConfig(
             robot=i, team=len(self.starts), start=(float(s[0]), float(s[1])),
             claim_wait=wait, sense_mode=cfg.sense_mode, priority=cfg.priority,
-            watch_interval=cfg.watch_interval, seed=cfg.seed)) for i, s in enumerate(self.starts)]
+            watch_interval=cfg.watch_interval, seed=cfg.seed,
+            announce_connections=cfg.announce_connections)) for i, s in enumerate(self.starts)]
         self._rng = random.Random(cfg.seed)
         h, w = world.shape
         self._free = world.free.tolist()
@@ -189,21 +191,29 @@ class LockstepSim:
     def _act(self, robot: int, step: int, tick: Tick) -> None:
         machine = self.machines[robot]
         events = self._inbox[robot]
-        events.append(tick)
+        if not events:
+            wake = machine.wake_time()
+            if wake is not None and wake > step:
+                return  # nothing new and nothing due: stepping would change nothing
         self._inbox[robot] = []
+        events.insert(0, tick)
         requests = machine.step(events)
         while requests:
             answer: Event | None = None
             for request in requests:
-                if isinstance(request, Broadcast):
-                    self._broadcast(robot, step, request)
-                elif isinstance(request, Move):
-                    self._inbox[robot].append(MoveResult(self._move(robot, request.to, step)))
-                elif isinstance(request, Sense):
-                    answer = SenseResult(tuple((c, self._status(c)) for c in request.cells))
-                elif isinstance(request, IsAlive):
-                    answer = AliveResult(request.robot, self.alive[request.robot])
-                elif isinstance(request, Done):
+                kind = type(request)
+                if kind is Broadcast:
+                    self._broadcast(robot, step, request)  # type: ignore[arg-type]
+                elif kind is Move:
+                    ok = self._move(robot, request.to, step)  # type: ignore[union-attr]
+                    self._inbox[robot].append(MoveResult(ok))
+                elif kind is Sense:
+                    answer = SenseResult(tuple((c, self._status(c))
+                                               for c in request.cells))  # type: ignore[union-attr]
+                elif kind is IsAlive:
+                    answer = AliveResult(request.robot,  # type: ignore[union-attr]
+                                         self.alive[request.robot])  # type: ignore[union-attr]
+                elif kind is Done:
                     self.done_steps[robot] = step
             requests = machine.step((answer,)) if answer is not None else []
 
@@ -254,13 +264,20 @@ class LockstepSim:
             self.claims.append((step, sender, message.cell))
         lo, hi = self.config.delay
         event = PeerMessage(sender, message)
-        for peer in range(len(self.starts)):
-            if peer == sender or not self.alive[peer]:
+        queue, fifo, alive = self._queue, self._fifo, self.alive
+        if lo == hi:  # equal delays keep every sender's messages in order by themselves
+            bucket = queue[step + max(lo, 1)]
+            for peer in range(len(alive)):
+                if peer != sender and alive[peer]:
+                    bucket.append((peer, event))
+                    self._in_flight += 1
+            return
+        for peer in range(len(alive)):
+            if peer == sender or not alive[peer]:
                 continue
-            delay = lo if lo == hi else self._rng.randint(lo, hi)
-            due = max(step + max(delay, 1), self._fifo.get((sender, peer), 0))
-            self._fifo[(sender, peer)] = due
-            self._queue[due].append((peer, event))
+            due = max(step + max(self._rng.randint(lo, hi), 1), fifo.get((sender, peer), 0))
+            fifo[(sender, peer)] = due
+            queue[due].append((peer, event))
             self._in_flight += 1
 
     def _own(self, robot: int, cell: Cell, step: int) -> None:

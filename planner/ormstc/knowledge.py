@@ -1,0 +1,128 @@
+"""What one robot knows about the world and its peers, built only from its own sensing and
+the messages it heard: cell owners, obstacles, dead and finished robots, pending claims.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from planner.ormstc.claims import ClaimBook
+from planner.ormstc.types import (
+    Cell,
+    CellStatus,
+    ClaimMsg,
+    CompletionMsg,
+    DeadRobotMsg,
+    Message,
+    Priority,
+    StartMsg,
+    SubCell,
+    TreeEdgeMsg,
+    WithdrawalMsg,
+)
+
+
+@dataclass
+class Knowledge:
+    """One robot's map and peer table (mutable, private to its machine)."""
+
+    me: int
+    team: int
+    priority: Priority
+    starts: dict[int, SubCell] = field(default_factory=dict)
+    # owners per cell in the order heard; several only when a dead robot's cell was retaken
+    owners: dict[Cell, list[int]] = field(default_factory=dict)
+    obstacle: set[Cell] = field(default_factory=set)
+    free: set[Cell] = field(default_factory=set)
+    dead: set[int] = field(default_factory=set)
+    released: set[int] = field(default_factory=set)
+    completed: set[int] = field(default_factory=set)
+    claim_ttl: float = float("inf")
+    now: float = 0.0  # the owning machine keeps this current
+    claims: ClaimBook = field(init=False)
+    changed: bool = False  # a peer finished, withdrew or died since the flag was cleared
+
+    def __post_init__(self) -> None:
+        self.claims = ClaimBook(self.priority, self.claim_ttl)
+
+    def own(self, cell: Cell, robot: int) -> None:
+        holders = self.owners.setdefault(cell, [])
+        if robot in holders:
+            holders.remove(robot)
+        holders.append(robot)
+
+    def live_owner(self, cell: Cell) -> int | None:
+        """The most recently heard owner of ``cell`` not known dead."""
+        for robot in reversed(self.owners.get(cell, ())):
+            if robot not in self.dead:
+                return robot
+        return None
+
+    def dead_owners(self, cell: Cell) -> list[int]:
+        return [robot for robot in self.owners.get(cell, ()) if robot in self.dead]
+
+    def was_owned(self, cell: Cell) -> bool:
+        return cell in self.owners
+
+    def note_sensed(self, cell: Cell, status: CellStatus) -> None:
+        # a robot body hides whatever is under it, so only free/obstacle are remembered
+        if status is CellStatus.OBSTACLE:
+            self.obstacle.add(cell)
+        elif status is CellStatus.FREE:
+            self.free.add(cell)
+
+    def unknown_around(self, cell: Cell, skip: Cell, mine: set[Cell]) -> list[Cell]:
+        """Neighbours of ``cell`` (but ``skip``) nothing is known about yet."""
+        out = []
+        for dr, dc in ((-1, 0), (0, -1), (1, 0), (0, 1)):
+            other = (cell[0] + dr, cell[1] + dc)
+            if (other != skip and other not in mine and other not in self.obstacle
+                    and other not in self.free and other not in self.owners):
+                out.append(other)
+        return out
+
+    def mark_dead(self, robot: int) -> None:
+        if robot != self.me and robot not in self.dead:
+            self.dead.add(robot)
+            self.changed = True
+
+    def hear(self, message: Message) -> None:
+        """Update the map from a peer's message (order across senders is arbitrary)."""
+        kind = type(message)
+        if kind is TreeEdgeMsg:
+            self._hear_edge(message)  # type: ignore[arg-type]
+        elif kind is ClaimMsg:
+            self.claims.hear(message.cell, message.robot,  # type: ignore[union-attr]
+                             message.covered, self.now)  # type: ignore[union-attr]
+        elif kind is StartMsg:
+            sub = message.sub  # type: ignore[union-attr]
+            self.starts[message.robot] = sub
+            self.own((sub[0] >> 1, sub[1] >> 1), message.robot)
+            self.changed = True
+        elif kind is CompletionMsg:
+            self.completed.add(message.robot)
+            self.changed = True
+        elif kind is WithdrawalMsg:
+            self.completed.discard(message.robot)
+            self.changed = True
+        elif kind is DeadRobotMsg:
+            self.mark_dead(message.dead)  # type: ignore[union-attr]
+            self.released.add(message.dead)  # type: ignore[union-attr]
+            self.changed = True
+
+    def _hear_edge(self, message: TreeEdgeMsg) -> None:
+        child = message.child
+        holders = self.owners.get(child)
+        if holders is None:
+            self.owners[child] = [message.robot]
+        else:
+            self.own(child, message.robot)
+        self.claims.pending.pop(child, None)
+
+    def all_started(self) -> bool:
+        return all(r in self.starts or r in self.dead for r in range(self.team))
+
+    def peers_settled(self) -> bool:
+        """Every other robot finished, or died finished, or died and had its cells freed."""
+        return all(r == self.me or r in self.completed or (r in self.dead and r in self.released)
+                   for r in range(self.team))

@@ -1,0 +1,45 @@
+"""Oracles for the ORMSTC tests: what must be covered, computed from the world alone."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from planner.grid import coarsen, expand, label_components
+from planner.types import BoolArray, OccupancyGrid, SubCell
+from simhw.lockstep import SimResult
+
+
+def must_cover(world: OccupancyGrid, starts: Sequence[SubCell],
+               blocked_subs: Sequence[SubCell] = ()) -> BoolArray:
+    """Sub-cells of the free cells reachable (4-connected, on the coarse grid) from a start.
+
+    ``blocked_subs`` (dead bodies) make their cells impassable, and reachability then counts
+    only from the starts in cells still passable.
+    """
+    free = coarsen(world).free.copy()
+    for r, c in blocked_subs:
+        free[r // 2, c // 2] = False
+    labels, _ = label_components(free)
+    keep = {int(labels[r // 2, c // 2]) for r, c in starts} - {0}
+    cells = np.isin(labels, list(keep))
+    out = np.zeros(world.shape, dtype=bool)
+    mask = expand(cells)
+    out[: mask.shape[0], : mask.shape[1]] = mask
+    return out
+
+
+def body_positions(result: SimResult) -> list[SubCell]:
+    """Where the dead robots' bodies stopped."""
+    return [result.paths[robot][-1] for robot in result.deaths]
+
+
+def survivors_starts(result: SimResult) -> list[SubCell]:
+    return [s for i, s in enumerate(result.starts) if i not in result.deaths]
+
+
+def missed(result: SimResult) -> BoolArray:
+    """Sub-cells the oracle requires that nobody covered."""
+    need = must_cover(result.world, survivors_starts(result), body_positions(result))
+    return need & (result.visits == 0)
