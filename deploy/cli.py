@@ -78,13 +78,24 @@ def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     return parser
 
 
+def _is_user_error(error: Exception) -> bool:
+    """Mistakes a user can fix: printed as one line. bus.errors is checked only if loaded,
+    so commands that never touch the wire do not pay for importing it."""
+    if isinstance(error, (PlannerError, UsageError)):
+        return True
+    bus_errors = sys.modules.get("bus.errors")
+    return bus_errors is not None and isinstance(error, bus_errors.BusError)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = _parser_for(argv)
     args = parser.parse_args(argv)
     try:
         return int(args._module.run(args) or 0)
-    except (PlannerError, UsageError) as error:
+    except Exception as error:
+        if not _is_user_error(error):
+            raise
         print(f"mstc {args.command}: error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

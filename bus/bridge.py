@@ -1,0 +1,399 @@
+"""asyncio bridge over one open Zenoh session.
+
+Zenoh runs callbacks on its own threads. Here those callbacks only append the raw sample to a
+small buffer under a lock and, if no wake-up is pending, schedule one with
+``call_soon_threadsafe``: a burst of samples costs one wake-up (measured ~40k msg/s against
+~15k/s with one wake-up per sample). Decoding, handlers, responders and liveliness callbacks
+all run on the event loop. Buffers are bounded by the subscription's policy so a slow
+consumer costs dropped (and counted) messages, never a blocked Zenoh thread.
+
+Use ``async with Bus(session, mission) as bus`` (or ``Bus.connect(settings)``): async
+query responders run in the bus's own task group, which is cancelled and awaited on exit.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import inspect
+import logging
+import threading
+from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
+from contextlib import asynccontextmanager
+from typing import Any, Generic, TypeVar
+
+import zenoh
+
+from bus import keys
+from bus.codec import DEFAULT_MAX_PAYLOAD, Expected, decode, encode
+from bus.config import ConnectionSettings, open_session_async
+from bus.drops import DropCounter
+from bus.errors import BusClosedError, DecodeError
+from bus.inbox import BoundedFifo, Inbox, LatestWins, Policy, Received
+from bus.qos import DEFAULT as DEFAULT_QOS
+from bus.qos import Qos, qos_for
+
+__all__ = ["BoundedFifo", "Bus", "LatestWins", "LivelinessWatch", "Policy",
+           "QueryableHandle", "Received", "Subscription"]
+
+_log = logging.getLogger("mstc.bus")
+
+M = TypeVar("M")
+T = TypeVar("T")
+
+
+class Subscription(Generic[M]):
+    """Decoded messages of one key expression: ``async for rx in sub`` or ``await sub.recv()``
+    when no handler was given; with a handler, it is called on the loop for each message."""
+
+    def __init__(self, bus: Bus, key: str, expected: Expected[M], policy: Policy,
+                 handler: Callable[[str, M], None] | None) -> None:
+        self.key = key
+        self._bus = bus
+        self._expected = expected
+        self._handler = handler
+        self._event = asyncio.Event()
+        self._inbox: Inbox[bytes] = Inbox(
+            bus.loop, policy, self._on_wake,
+            lambda k: bus.drops.count(keys.kind_of(k), "overflow", f"buffer full on {k}"))
+        self._zenoh: zenoh.Subscriber[None] | None = None
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._inbox.push(str(sample.key_expr), sample.payload.to_bytes())
+
+    def _on_wake(self) -> None:
+        if self._handler is None:
+            self._event.set()
+            return
+        while (item := self._next()) is not None:
+            try:
+                self._handler(item.key, item.msg)
+            except Exception:  # noqa: BLE001 - a handler bug must not stop delivery of the rest
+                _log.exception("handler for %s failed on %s", self.key, item.key)
+                self._bus.drops.count(keys.kind_of(item.key), "handler_error")
+
+    def _next(self) -> Received[M] | None:
+        while (raw := self._inbox.pop()) is not None:
+            msg = self._bus.decode_or_count(raw[0], raw[1], self._expected)
+            if msg is not None:
+                return Received(raw[0], msg)
+        return None
+
+    def try_recv(self) -> Received[M] | None:
+        """The next buffered message, or None without waiting."""
+        return self._next()
+
+    async def recv(self) -> Received[M]:
+        """Wait for the next message; BusClosedError once the subscription is closed."""
+        while True:
+            item = self._next()
+            if item is not None:
+                return item
+            if self._inbox.closed:
+                raise BusClosedError(f"subscription to {self.key} is closed")
+            self._event.clear()
+            await self._event.wait()
+
+    def __aiter__(self) -> AsyncIterator[Received[M]]:
+        return self
+
+    async def __anext__(self) -> Received[M]:
+        try:
+            return await self.recv()
+        except BusClosedError:
+            raise StopAsyncIteration from None
+
+    def close(self) -> None:
+        self._inbox.close()
+        self._event.set()
+        if self._zenoh is not None:
+            self._zenoh.undeclare()
+            self._zenoh = None
+
+
+class LivelinessWatch:
+    """Calls ``on_put(key)`` / ``on_delete(key)`` on the loop for matching tokens, starting
+    with the tokens that already exist (Zenoh's liveliness history)."""
+
+    def __init__(self, bus: Bus, key: str, on_put: Callable[[str], None],
+                 on_delete: Callable[[str], None]) -> None:
+        self.key = key
+        self._on_put = on_put
+        self._on_delete = on_delete
+        self._inbox: Inbox[bool] = Inbox(
+            bus.loop, BoundedFifo(65536), self._on_wake,
+            lambda k: bus.drops.count(keys.kind_of(k), "overflow", "liveliness backlog"))
+        self._zenoh: zenoh.Subscriber[None] | None = None
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        self._inbox.push(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+
+    def _on_wake(self) -> None:
+        while (item := self._inbox.pop()) is not None:
+            key, is_put = item
+            try:
+                (self._on_put if is_put else self._on_delete)(key)
+            except Exception:  # noqa: BLE001 - one bad callback must not hide later changes
+                _log.exception("liveliness callback failed for %s", key)
+
+    def close(self) -> None:
+        self._inbox.close()
+        if self._zenoh is not None:
+            self._zenoh.undeclare()
+            self._zenoh = None
+
+
+Responder = Callable[[Any], Any]
+
+
+class QueryableHandle:
+    """A declared queryable; replies are computed on the loop by the responder."""
+
+    def __init__(self, bus: Bus, key: str, responder: Responder,
+                 request_type: Expected[Any] | None, max_queue: int) -> None:
+        self.key = key
+        self._bus = bus
+        self._responder = responder
+        self._request_type = request_type
+        self._inbox: Inbox[zenoh.Query] = Inbox(
+            bus.loop, BoundedFifo(max_queue), self._on_wake,
+            lambda k: bus.drops.count(keys.kind_of(k), "overflow", "query backlog"))
+        self._zenoh: zenoh.Queryable[None] | None = None
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        self._inbox.push(str(query.key_expr), query)
+
+    def _on_wake(self) -> None:
+        while (item := self._inbox.pop()) is not None:
+            self._bus.answer(self.key, item[1], self._responder, self._request_type)
+
+    def close(self) -> None:
+        self._inbox.close()
+        if self._zenoh is not None:
+            self._zenoh.undeclare()
+            self._zenoh = None
+
+
+class Bus:
+    """One Zenoh session seen from one asyncio loop. Enter with ``async with``."""
+
+    def __init__(self, session: zenoh.Session, mission: str, *,
+                 drops: DropCounter | None = None,
+                 max_payload: int = DEFAULT_MAX_PAYLOAD) -> None:
+        self.session = session
+        self.mission = keys.check_mission(mission)
+        self.drops = drops or DropCounter()
+        self.max_payload = max_payload
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._tasks: asyncio.TaskGroup | None = None
+        self._pending: set[asyncio.Task[None]] = set()
+        self._closables: list[Subscription[Any] | LivelinessWatch | QueryableHandle] = []
+        self._tokens: list[zenoh.LivelinessToken] = []
+
+    @classmethod
+    @asynccontextmanager
+    async def connect(cls, settings: ConnectionSettings, **kwargs: Any) -> AsyncIterator[Bus]:
+        """Open a session for ``settings`` and a Bus on it; both closed on exit."""
+        async with open_session_async(settings) as session, \
+                cls(session, settings.mission, **kwargs) as bus:
+            yield bus
+
+    @property
+    def loop(self) -> asyncio.AbstractEventLoop:
+        if self._loop is None:
+            raise BusClosedError("use the Bus inside 'async with'")
+        return self._loop
+
+    async def __aenter__(self) -> Bus:
+        self._loop = asyncio.get_running_loop()
+        self._tasks = asyncio.TaskGroup()
+        await self._tasks.__aenter__()
+        return self
+
+    async def __aexit__(self, *exc_info: Any) -> None:
+        self.close_declarations()
+        tasks, self._tasks = self._tasks, None
+        if tasks is not None:
+            for task in list(self._pending):
+                task.cancel()
+            await tasks.__aexit__(*exc_info)
+
+    def close_declarations(self) -> None:
+        """Undeclare every subscriber, queryable and token of this bus."""
+        for item in self._closables:
+            item.close()
+        self._closables.clear()
+        for token in self._tokens:
+            token.undeclare()
+        self._tokens.clear()
+
+    # --- pub/sub --------------------------------------------------------------------------
+
+    def publish(self, key: str, msg: Any, qos: Qos | None = None) -> None:
+        """Encode and put ``msg`` on ``key`` with its kind's QoS (bus.qos) unless given."""
+        chosen = qos or qos_for(type(msg))
+        self.session.put(key, encode(msg, max_size=self.max_payload),
+                         priority=chosen.priority, congestion_control=chosen.congestion,
+                         express=chosen.express)
+
+    def subscribe(self, key: str, expected: Expected[M], handler: Callable[[str, M], None]
+                  | None = None, policy: Policy | None = None) -> Subscription[M]:
+        """Subscribe to ``key`` (wildcards allowed); see Subscription."""
+        sub: Subscription[M] = Subscription(self, key, expected, policy or BoundedFifo(),
+                                            handler)
+        sub._zenoh = self.session.declare_subscriber(
+            key, zenoh.handlers.Callback(sub._on_sample, indirect=False))
+        self._closables.append(sub)
+        return sub
+
+    def decode_or_count(self, key: str, payload: bytes, expected: Expected[M]) -> M | None:
+        """Decode, or count the drop (by key kind) and return None."""
+        try:
+            return decode(payload, expected, max_size=self.max_payload)
+        except DecodeError as error:
+            self.drops.count(keys.kind_of(key), "decode", f"{key}: {error}")
+            return None
+
+    # --- queries --------------------------------------------------------------------------
+
+    async def query(self, key: str, request: Any | None, expected: Expected[M], *,
+                    timeout: float = 2.0, qos: Qos | None = None) -> list[Received[M]]:
+        """Ask every matching queryable; return the valid replies that came within
+        ``timeout`` seconds (bad replies are counted as drops)."""
+        loop = self.loop
+        done = loop.create_future()
+        raw: list[tuple[str, bytes | None]] = []
+        lock = threading.Lock()
+
+        def on_reply(reply: zenoh.Reply) -> None:
+            sample = reply.ok
+            with lock:
+                if sample is not None:
+                    raw.append((str(sample.key_expr), sample.payload.to_bytes()))
+                else:
+                    raw.append((key, None))
+
+        def on_done() -> None:
+            # A closed loop means nobody awaits this query any more.
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(_resolve, done)
+
+        chosen = qos or (qos_for(type(request)) if request is not None else DEFAULT_QOS)
+        cancel = zenoh.CancellationToken()
+        payload = None if request is None else encode(request, max_size=self.max_payload)
+        self.session.get(
+            key, zenoh.handlers.Callback(on_reply, on_done, indirect=False),
+            target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE,
+            timeout=timeout, payload=payload, priority=chosen.priority,
+            congestion_control=chosen.congestion, cancellation_token=cancel)
+        try:
+            # Zenoh ends the query at ``timeout``; the margin only guards against a lost end.
+            async with asyncio.timeout(timeout + 1.0):
+                await done
+        except TimeoutError:
+            _log.warning("query %s: no end-of-replies from Zenoh after %.1f s", key, timeout)
+        finally:
+            if not done.done():
+                cancel.cancel()
+        with lock:
+            got = list(raw)
+        out: list[Received[M]] = []
+        for reply_key, data in got:
+            if data is None:
+                self.drops.count(keys.kind_of(reply_key), "reply_error")
+                continue
+            msg = self.decode_or_count(reply_key, data, expected)
+            if msg is not None:
+                out.append(Received(reply_key, msg))
+        return out
+
+    def declare_queryable(self, key: str, responder: Responder,
+                          request_type: Expected[Any] | None = None, *,
+                          max_queue: int = 1024) -> QueryableHandle:
+        """Serve queries on the concrete ``key``. ``responder(request)`` gets the decoded
+        request (None when ``request_type`` is None or the query had no payload) and returns
+        a message, a sequence of messages, or an awaitable of either; each is a reply."""
+        handle = QueryableHandle(self, key, responder, request_type, max_queue)
+        handle._zenoh = self.session.declare_queryable(
+            key, zenoh.handlers.Callback(handle._on_query, indirect=False))
+        self._closables.append(handle)
+        return handle
+
+    def answer(self, key: str, query: zenoh.Query, responder: Responder,
+               request_type: Expected[Any] | None) -> None:
+        """Run ``responder`` for ``query`` on the loop (async ones in the bus task group)."""
+        request = None
+        payload = query.payload
+        if request_type is not None and payload is not None:
+            data = payload.to_bytes()
+            request = self.decode_or_count(key, data, request_type)
+            if request is None:
+                _finish(query, error="malformed request")
+                return
+        try:
+            result = responder(request)
+        except Exception as error:  # noqa: BLE001 - logged and sent to the querier
+            _log.exception("responder on %s failed", key)
+            _finish(query, error=f"responder failed: {error}")
+            return
+        if inspect.isawaitable(result):
+            if self._tasks is None:
+                _finish(query, error="bus closed")
+                return
+            task = self._tasks.create_task(self._answer_later(key, query, result))
+            self._pending.add(task)
+            task.add_done_callback(self._pending.discard)
+            return
+        self._reply(key, query, result)
+
+    async def _answer_later(self, key: str, query: zenoh.Query,
+                            result: Awaitable[Any]) -> None:
+        try:
+            value = await result
+        except asyncio.CancelledError:
+            _finish(query, error="bus closed")
+            raise
+        except Exception as error:  # noqa: BLE001 - logged and sent to the querier
+            _log.exception("async responder on %s failed", key)
+            _finish(query, error=f"responder failed: {error}")
+            return
+        self._reply(key, query, value)
+
+    def _reply(self, key: str, query: zenoh.Query, result: Any) -> None:
+        items: Sequence[Any] = result if isinstance(result, (list, tuple)) else (
+            () if result is None else (result,))
+        try:
+            for msg in items:
+                query.reply(key, encode(msg, max_size=self.max_payload))
+        finally:
+            query.drop()
+
+    # --- liveliness -----------------------------------------------------------------------
+
+    def declare_token(self, key: str) -> zenoh.LivelinessToken:
+        """Declare a liveliness token, undeclared when the bus closes (or the process dies)."""
+        token = self.session.liveliness().declare_token(key)
+        self._tokens.append(token)
+        return token
+
+    def watch_liveliness(self, key: str, on_put: Callable[[str], None],
+                         on_delete: Callable[[str], None]) -> LivelinessWatch:
+        """Watch tokens matching ``key``; existing tokens are reported first as puts."""
+        watch = LivelinessWatch(self, key, on_put, on_delete)
+        watch._zenoh = self.session.liveliness().declare_subscriber(
+            key, zenoh.handlers.Callback(watch._on_sample, indirect=False), history=True)
+        self._closables.append(watch)
+        return watch
+
+
+def _resolve(future: asyncio.Future[None]) -> None:
+    if not future.done():
+        future.set_result(None)
+
+
+def _finish(query: zenoh.Query, error: str) -> None:
+    try:
+        query.reply_err(error.encode())
+    finally:
+        query.drop()

@@ -1,0 +1,308 @@
+"""Who is alive: a sans-I/O failure detector plus the async service that feeds it.
+
+Two signals. A robot's liveliness token ``mstc/<m>/alive/<r>/<i>`` disappears ~3 ms after its
+process dies (the TCP close is seen at once) or ~0.75 x lease after the process hangs
+entirely. Heartbeats cover the other hang: a process whose event loop is stuck while Zenoh's
+threads still keep its transport (and token) alive. Token deletions are confirmed after a
+short grace so that losing *our own* router (which deletes everybody's token locally) is
+not mistaken for a massacre: while disconnected nothing expires, and on reconnection every
+peer gets a fresh timeout. Incarnations fence stale lives: a heartbeat from a life already
+declared dead is ignored, a higher incarnation is a new life.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from bus import keys
+from bus.bridge import BoundedFifo, Bus
+from bus.messages import DeathNotice, DeathReason, Heartbeat, Pose
+
+DEFAULT_HEARTBEAT_PERIOD = 0.2
+DEFAULT_TIMEOUT = 1.0
+DEFAULT_TOKEN_GRACE = 0.1
+
+
+@dataclass
+class _Peer:
+    incarnation: int
+    last_seen: float
+    token_lost_at: float | None = None
+
+
+class FailureDetector:
+    """Decides deaths from heartbeats, token deletions and others' death notices.
+
+    Clock values are injected (seconds, any monotonic origin); nothing here sleeps or does
+    I/O. ``detector`` is the robot running this detector (None for an observer).
+    """
+
+    def __init__(self, *, timeout: float = DEFAULT_TIMEOUT,
+                 token_grace: float = DEFAULT_TOKEN_GRACE, detector: int | None = None) -> None:
+        if timeout <= 0 or token_grace < 0:
+            raise ValueError("timeout must be > 0 and token_grace >= 0")
+        self.timeout = timeout
+        self.token_grace = token_grace
+        self.detector = detector
+        self._peers: dict[int, _Peer] = {}
+        self._dead: dict[int, DeathNotice] = {}  # robot -> notice of its newest dead life
+        self._connected = True
+
+    # --- inputs ---------------------------------------------------------------------------
+
+    def _fenced(self, robot: int, incarnation: int) -> bool:
+        notice = self._dead.get(robot)
+        return notice is not None and incarnation <= notice.incarnation
+
+    def _touch(self, robot: int, incarnation: int, now: float) -> bool:
+        if self._fenced(robot, incarnation):
+            return False
+        peer = self._peers.get(robot)
+        if peer is not None and incarnation < peer.incarnation:
+            return False  # an older life of a robot that has since restarted
+        if peer is None or incarnation > peer.incarnation:
+            self._peers[robot] = _Peer(incarnation, now)
+        else:
+            peer.last_seen = max(peer.last_seen, now)
+        return True
+
+    def on_heartbeat(self, hb: Heartbeat, now: float) -> bool:
+        """Record a heartbeat; False if it comes from a fenced (dead or superseded) life."""
+        return self._touch(hb.robot, hb.incarnation, now)
+
+    def on_token(self, robot: int, incarnation: int, now: float) -> bool:
+        """A liveliness token appeared (or was re-announced after a router restart)."""
+        accepted = self._touch(robot, incarnation, now)
+        peer = self._peers.get(robot)
+        if accepted and peer is not None and peer.incarnation == incarnation:
+            peer.token_lost_at = None
+        return accepted
+
+    def on_token_deleted(self, robot: int, incarnation: int, now: float) -> None:
+        """A token vanished: the life is declared dead by :meth:`expire` after the grace."""
+        if not self._connected:
+            return
+        peer = self._peers.get(robot)
+        if peer is None:
+            if not self._fenced(robot, incarnation):
+                self._peers[robot] = _Peer(incarnation, now, token_lost_at=now)
+            return
+        if peer.incarnation == incarnation:
+            peer.token_lost_at = now
+
+    def on_death_notice(self, notice: DeathNotice) -> bool:
+        """Accept another detector's verdict; True if it is news (a newer dead life)."""
+        if self._fenced(notice.robot, notice.incarnation):
+            return False
+        self._dead[notice.robot] = notice
+        peer = self._peers.get(notice.robot)
+        if peer is not None and peer.incarnation <= notice.incarnation:
+            del self._peers[notice.robot]
+        return True
+
+    def set_connected(self, connected: bool, now: float) -> None:
+        """Our own link to the network: while down, silence proves nothing about peers."""
+        if connected and not self._connected:
+            for peer in self._peers.values():
+                peer.last_seen = max(peer.last_seen, now)
+                peer.token_lost_at = None
+        if not connected:
+            for peer in self._peers.values():
+                peer.token_lost_at = None
+        self._connected = connected
+
+    def on_local_stall(self, now: float) -> None:
+        """This process itself was paused (its loop ran late): the silence it measured is
+        its own, so every peer gets a fresh timeout instead of being declared dead."""
+        for peer in self._peers.values():
+            peer.last_seen = max(peer.last_seen, now)
+
+    # --- outputs --------------------------------------------------------------------------
+
+    def expire(self, now: float) -> list[DeathNotice]:
+        """Declare dead every life whose token is gone (after the grace) or whose last sign
+        of life is older than the timeout; each death is reported once."""
+        if not self._connected:
+            return []
+        notices = []
+        for robot, peer in sorted(self._peers.items()):
+            reason: DeathReason | None = None
+            if peer.token_lost_at is not None and now - peer.token_lost_at >= self.token_grace:
+                reason = "token"
+            elif now - peer.last_seen > self.timeout:
+                reason = "heartbeat"
+            if reason is not None:
+                notices.append(DeathNotice(robot, peer.incarnation, self.detector, reason, now))
+        for notice in notices:
+            self.on_death_notice(notice)
+        return notices
+
+    def alive(self) -> dict[int, int]:
+        """Robots currently believed alive -> their incarnation."""
+        return {robot: peer.incarnation for robot, peer in sorted(self._peers.items())}
+
+    def deaths(self) -> list[DeathNotice]:
+        """The newest known death of each robot (re-announce these: they are durable)."""
+        return [self._dead[robot] for robot in sorted(self._dead)]
+
+    def is_dead(self, robot: int, incarnation: int) -> bool:
+        return self._fenced(robot, incarnation)
+
+    def death_of(self, robot: int) -> DeathNotice | None:
+        """The newest known death notice of ``robot``, if any."""
+        return self._dead.get(robot)
+
+
+@dataclass(frozen=True)
+class HeartbeatInfo:
+    """What a heartbeat says besides identity: filled in by the agent at each beat."""
+
+    pose: Pose | None = None
+    state: str = "running"
+    sim_time: float = 0.0
+
+
+class HeartbeatPublisher:
+    """Publishes a robot's heartbeat every ``period`` seconds until cancelled."""
+
+    def __init__(self, bus: Bus, robot: int, incarnation: int, *,
+                 period: float = DEFAULT_HEARTBEAT_PERIOD,
+                 info: Callable[[], HeartbeatInfo] = HeartbeatInfo) -> None:
+        self._bus = bus
+        self._key = keys.heartbeat(bus.mission, robot)
+        self.robot = robot
+        self.incarnation = incarnation
+        self.period = period
+        self._info = info
+        self.seq = 0
+
+    def beat(self) -> None:
+        info = self._info()
+        self.seq += 1
+        self._bus.publish(self._key, Heartbeat(self.robot, self.incarnation, self.seq,
+                                               info.pose, info.state, info.sim_time))
+
+    async def run(self) -> None:
+        while True:
+            self.beat()
+            await asyncio.sleep(self.period)
+
+
+class LivelinessService:
+    """A robot's liveness plumbing: its token and heartbeats, a FailureDetector fed from
+    the wire, and death notices broadcast for the deaths it detects.
+
+    ``on_death(notice)`` is called on the loop once per newly known death of a peer;
+    ``fenced`` is set when this robot's own life has been declared dead (it must stop).
+    Run ``await service.run()`` inside the agent's TaskGroup.
+    """
+
+    def __init__(self, bus: Bus, robot: int, incarnation: int, *,
+                 heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
+                 timeout: float = DEFAULT_TIMEOUT,
+                 info: Callable[[], HeartbeatInfo] = HeartbeatInfo,
+                 on_death: Callable[[DeathNotice], None] | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.bus = bus
+        self.robot = robot
+        self.incarnation = incarnation
+        self.detector = FailureDetector(timeout=timeout, detector=robot)
+        self.heartbeats = HeartbeatPublisher(bus, robot, incarnation,
+                                             period=heartbeat_period, info=info)
+        self.fenced = asyncio.Event()
+        self._on_death = on_death
+        self._clock = clock
+        self._last_tick: float | None = None
+        self._reminded: dict[int, float] = {}
+
+    def _news(self, notice: DeathNotice) -> None:
+        if notice.robot == self.robot:
+            if notice.incarnation >= self.incarnation:
+                self.fenced.set()
+            return
+        if self._on_death is not None:
+            self._on_death(notice)
+
+    def _on_heartbeat(self, key: str, hb: Heartbeat) -> None:
+        if hb.robot == self.robot:
+            return
+        now = self._clock()
+        if not self.detector.on_heartbeat(hb, now):
+            self._remind(hb, now)
+
+    def _remind(self, hb: Heartbeat, now: float) -> None:
+        """A dead life is still beating (it was hung, or missed the notice during an
+        outage): tell it again, at most once per timeout, so it fences itself."""
+        notice = self.detector.death_of(hb.robot)
+        if notice is None or hb.incarnation > notice.incarnation:
+            return
+        if now - self._reminded.get(hb.robot, -float("inf")) < self.detector.timeout:
+            return
+        self._reminded[hb.robot] = now
+        self.bus.publish(keys.death(self.bus.mission, hb.robot), notice)
+
+    def _on_notice(self, key: str, notice: DeathNotice) -> None:
+        if self.detector.on_death_notice(notice) or notice.robot == self.robot:
+            self._news(notice)
+
+    def _on_token(self, key: str, present: bool) -> None:
+        parsed = keys.parse(key)
+        if parsed is None or parsed.robot is None or parsed.incarnation is None:
+            return
+        if parsed.robot == self.robot:
+            return
+        if present:
+            self.detector.on_token(parsed.robot, parsed.incarnation, self._clock())
+        else:
+            self.detector.on_token_deleted(parsed.robot, parsed.incarnation, self._clock())
+
+    def _connected(self) -> bool:
+        info = self.bus.session.info
+        return any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
+
+    def tick(self) -> list[DeathNotice]:
+        """Check connectivity, expire, and broadcast the deaths found (one call per tick)."""
+        now = self._clock()
+        if self._last_tick is not None and now - self._last_tick > self.detector.timeout / 2:
+            self.detector.on_local_stall(now)
+        self._last_tick = now
+        self.detector.set_connected(self._connected(), now)
+        notices = self.detector.expire(now)
+        for notice in notices:
+            self.bus.publish(keys.death(self.bus.mission, notice.robot), notice)
+            self._news(notice)
+        return notices
+
+    async def run(self) -> None:
+        mission = self.bus.mission
+        self.bus.declare_token(keys.alive(mission, self.robot, self.incarnation))
+        heartbeats = self.bus.subscribe(keys.all_heartbeats(mission), Heartbeat,
+                                        self._on_heartbeat, BoundedFifo(4096))
+        notices = self.bus.subscribe(keys.all_deaths(mission), DeathNotice, self._on_notice,
+                                     BoundedFifo(4096))
+        watch = self.bus.watch_liveliness(
+            keys.all_alive(mission), lambda k: self._on_token(k, True),
+            lambda k: self._on_token(k, False))
+        tick = min(self.heartbeats.period, self.detector.token_grace) / 2
+        next_beat = self._clock()
+        try:
+            while True:
+                now = self._clock()
+                if now >= next_beat:
+                    self.heartbeats.beat()
+                    next_beat = now + self.heartbeats.period
+                self.tick()
+                await asyncio.sleep(tick)
+        finally:
+            watch.close()
+            heartbeats.close()
+            notices.close()
+
+    def leave(self, now: float | None = None) -> None:
+        """Announce a voluntary departure (reason "leaving") before the process exits."""
+        stamp = self._clock() if now is None else now
+        notice = DeathNotice(self.robot, self.incarnation, self.robot, "leaving", stamp)
+        self.bus.publish(keys.death(self.bus.mission, self.robot), notice)

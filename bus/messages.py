@@ -1,0 +1,282 @@
+"""Wire messages: frozen dataclasses, one per kind, registered by their ``KIND`` tag.
+
+Field types are limited to what the codec checks strictly: int, float, str, bool, bytes,
+None, Literal[...], tuple[...] (fixed or ``tuple[X, ...]``), dict[str|int, X], unions, and
+nested record dataclasses (registered with :func:`record`). Adding a message is a dataclass
+with a ``KIND`` class variable decorated with :func:`message`.
+
+Conventions: robots are ints; a pose is (row, col, heading) in sub-cells with heading
+0=N 1=E 2=S 3=W; ``sim_time`` is simulated seconds; ``incarnation`` grows each time a
+robot's process (re)starts so that stale lives can be fenced.
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Literal, TypeVar
+
+import numpy as np
+import numpy.typing as npt
+
+SCHEMA_VERSION = 1
+
+Pose = tuple[int, int, int]
+SubCell = tuple[int, int]
+SummaryValue = int | float | str
+
+M = TypeVar("M")
+MESSAGE_TYPES: dict[str, type[Any]] = {}
+RECORD_TYPES: set[type[Any]] = set()
+
+
+def message(cls: type[M]) -> type[M]:
+    """Register a message dataclass under its ``KIND`` tag (unique)."""
+    kind = cls.__dict__.get("KIND")
+    if not isinstance(kind, str) or not kind:
+        raise TypeError(f"{cls.__name__} needs a non-empty KIND class variable")
+    if kind in MESSAGE_TYPES:
+        raise TypeError(f"message kind {kind!r} registered twice")
+    MESSAGE_TYPES[kind] = cls
+    return cls
+
+
+def record(cls: type[M]) -> type[M]:
+    """Register a dataclass that may appear nested inside messages."""
+    RECORD_TYPES.add(cls)
+    return cls
+
+
+# --- robots -------------------------------------------------------------------------------
+
+RobotStateName = str  # free text such as "starting", "covering", "done", "fenced"
+
+EventKind = Literal[
+    "started", "section_complete", "takeover_started", "takeover_finished", "leaving",
+    "completed", "completion_withdrawn", "fenced", "stopped",
+]
+
+
+@message
+@dataclass(frozen=True)
+class Heartbeat:
+    KIND: ClassVar[str] = "heartbeat"
+    robot: int
+    incarnation: int
+    seq: int
+    pose: Pose | None
+    state: str
+    sim_time: float
+
+
+@message
+@dataclass(frozen=True)
+class RobotStatus:
+    """The hello a robot announces at start and re-announces periodically."""
+
+    KIND: ClassVar[str] = "status"
+    robot: int
+    incarnation: int
+    start: SubCell
+    algo: str
+    plan_digest: str
+    state: str
+    message: str = ""
+
+
+Hello = RobotStatus
+
+
+@message
+@dataclass(frozen=True)
+class Progress:
+    KIND: ClassVar[str] = "progress"
+    robot: int
+    incarnation: int
+    seq: int
+    cell: SubCell
+    sim_time: float
+
+
+@message
+@dataclass(frozen=True)
+class RobotEvent:
+    KIND: ClassVar[str] = "event"
+    robot: int
+    incarnation: int
+    kind: EventKind
+    subject: int | None = None
+    detail: str = ""
+
+
+DeathReason = Literal["heartbeat", "token", "leaving"]
+
+
+@message
+@dataclass(frozen=True)
+class DeathNotice:
+    """``robot``/``incarnation`` is the dead life; ``detected_at`` is the detector's clock."""
+
+    KIND: ClassVar[str] = "death"
+    robot: int
+    incarnation: int
+    detected_by: int | None
+    reason: DeathReason
+    detected_at: float
+
+
+MissionState = Literal["running", "complete", "failed"]
+
+
+@message
+@dataclass(frozen=True)
+class MissionStatus:
+    KIND: ClassVar[str] = "mission"
+    state: MissionState
+    message: str
+    summary: dict[str, SummaryValue] = field(default_factory=dict)
+
+
+# --- simulated hardware API ----------------------------------------------------------------
+
+HwAction = Literal["forward", "turn_left", "turn_right", "sense", "pose", "stop"]
+Sensor = Literal["front", "left", "right"]
+HwStatus = Literal["ok", "bumped", "failed", "frozen", "rejected"]
+
+
+@message
+@dataclass(frozen=True)
+class HwCommand:
+    KIND: ClassVar[str] = "hw_cmd"
+    cmd_id: int
+    robot: int
+    incarnation: int
+    action: HwAction
+    sensors: tuple[Sensor, ...] = ()
+
+
+@message
+@dataclass(frozen=True)
+class HwReply:
+    """``odometry`` is (forward_m, turn_rad) since the last reply; sonar in sub-cells."""
+
+    KIND: ClassVar[str] = "hw_reply"
+    cmd_id: int
+    robot: int
+    status: HwStatus
+    message: str
+    pose: Pose
+    odometry: tuple[float, float]
+    sonar: dict[str, int | None]
+    bumper: bool
+    sim_time: float
+
+
+AdminAction = Literal["fail", "freeze", "unfreeze", "status", "shutdown"]
+
+
+@message
+@dataclass(frozen=True)
+class AdminCommand:
+    KIND: ClassVar[str] = "admin_cmd"
+    action: AdminAction
+    robot: int | None = None
+
+
+@message
+@dataclass(frozen=True)
+class AdminReply:
+    KIND: ClassVar[str] = "admin_reply"
+    ok: bool
+    message: str
+    data: dict[str, SummaryValue] = field(default_factory=dict)
+
+
+# --- simulator ground truth (sim-only keys) ------------------------------------------------
+
+@message
+@dataclass(frozen=True)
+class GroundTruthPose:
+    KIND: ClassVar[str] = "gt_pose"
+    robot: int
+    pose: Pose
+    sim_time: float
+
+
+@message
+@dataclass(frozen=True)
+class CoverEvent:
+    """``visits`` is how many times ``cell`` (a sub-cell) has been covered, this one included."""
+
+    KIND: ClassVar[str] = "cover"
+    robot: int
+    cell: SubCell
+    sim_time: float
+    visits: int
+
+
+@message
+@dataclass(frozen=True)
+class BumpEvent:
+    """``at`` is where the body stood, ``into`` the sub-cell it tried to enter."""
+
+    KIND: ClassVar[str] = "bump"
+    robot: int
+    at: SubCell
+    into: SubCell
+    sim_time: float
+
+
+@record
+@dataclass(frozen=True)
+class RobotTruth:
+    robot: int
+    pose: Pose
+    alive: bool
+    frozen: bool
+    failed: bool
+    covered: int
+
+
+@message
+@dataclass(frozen=True)
+class WorldState:
+    """The whole world for a monitor. ``free`` is numpy.packbits of the row-major free mask;
+    ``visits`` is zlib-compressed uint8 visit counts (saturating at 255), row-major."""
+
+    KIND: ClassVar[str] = "world"
+    map_name: str
+    shape: tuple[int, int]
+    free: bytes
+    visits: bytes
+    robots: tuple[RobotTruth, ...]
+    sim_time: float
+    time_scale: float
+
+
+def make_world_state(
+    map_name: str, free: npt.NDArray[np.bool_], visits: npt.NDArray[np.integer[Any]],
+    robots: tuple[RobotTruth, ...], sim_time: float, time_scale: float,
+) -> WorldState:
+    """Pack a free mask and visit-count array (same 2-D shape) into a WorldState."""
+    if free.shape != visits.shape or free.ndim != 2:
+        raise ValueError("free and visits must be 2-D arrays of the same shape")
+    counts = np.clip(visits, 0, 255).astype(np.uint8)
+    return WorldState(
+        map_name=map_name, shape=(int(free.shape[0]), int(free.shape[1])),
+        free=np.packbits(free.astype(bool), axis=None).tobytes(),
+        visits=zlib.compress(counts.tobytes()), robots=robots,
+        sim_time=float(sim_time), time_scale=float(time_scale))
+
+
+def world_free(state: WorldState) -> npt.NDArray[np.bool_]:
+    """The free mask of a WorldState as a bool array of ``state.shape``."""
+    count = state.shape[0] * state.shape[1]
+    bits = np.unpackbits(np.frombuffer(state.free, dtype=np.uint8), count=count)
+    return bits.astype(bool).reshape(state.shape)
+
+
+def world_visits(state: WorldState) -> npt.NDArray[np.uint8]:
+    """The visit counts of a WorldState as a uint8 array of ``state.shape``."""
+    raw = np.frombuffer(zlib.decompress(state.visits), dtype=np.uint8)
+    return raw.reshape(state.shape)

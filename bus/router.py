@@ -1,0 +1,95 @@
+"""An embedded Zenoh router: a session in router mode held open until asked to stop."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+
+import zenoh
+
+from bus.config import ConnectionSettings, make_zenoh_config
+from bus.errors import RouterError
+
+
+def run_router(settings: ConnectionSettings, stop: threading.Event,
+               ready: Callable[[], None] | None = None, parent: int | None = None) -> None:
+    """Serve as a router on ``settings.listen`` until ``stop`` is set (or, if ``parent`` is
+    given, until that process is no longer our parent); RouterError if the router cannot
+    start (typically: the listen port is taken)."""
+    if settings.mode != "router":
+        raise RouterError(f"run_router needs mode 'router', got {settings.mode!r}")
+    config = make_zenoh_config(settings)
+    # exit_on_failure makes a taken port a start-up error instead of a silent retry loop.
+    config.insert_json5("listen/exit_on_failure", "true")
+    try:
+        session = zenoh.open(config)
+    except zenoh.ZError as error:
+        raise RouterError(
+            f"cannot listen on {', '.join(settings.listen)}: {_short(str(error))}") from error
+    try:
+        if ready is not None:
+            ready()
+        # Event.wait with a period keeps the main thread responsive to signals.
+        while not stop.wait(0.2):
+            if parent is not None and os.getppid() != parent:
+                break
+    finally:
+        session.close()
+
+
+def _short(message: str) -> str:
+    """Zenoh errors carry Rust source locations; keep the first sentence for the user."""
+    if "Address already in use" in message:
+        return "address already in use (is another router running?)"
+    head = message.split(" at /", 1)[0]
+    return head.replace("\n", " ").strip()
+
+
+READY_MARK = "mstc router: ready"
+
+
+def start_router_process(endpoint: str, *, timeout: float = 10.0,
+                         extra_args: tuple[str, ...] = ()) -> subprocess.Popen[str]:
+    """Start ``mstc router --listen endpoint`` as a child process (never a fork of this
+    one) and return once it says it is ready; RouterError with its message if it fails."""
+    command = [sys.executable, "-m", "deploy.cli", "router", "--listen", endpoint,
+               "--exit-with-parent", *extra_args]
+    proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        readable, _, _ = select.select([proc.stdout], [], [], 0.1)
+        if readable:
+            line = proc.stdout.readline()
+            if line.startswith(READY_MARK):
+                return proc
+            if not line:  # EOF: the router exited
+                break
+    if proc.poll() is None:
+        proc.kill()
+    assert proc.stderr is not None
+    err = proc.stderr.read().strip()
+    stop_process(proc)
+    raise RouterError(err or f"router on {endpoint} did not start within {timeout:.0f} s")
+
+
+def stop_process(proc: subprocess.Popen[str], timeout: float = 5.0) -> int:
+    """SIGTERM, then SIGKILL after ``timeout``; return the exit code."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    for stream in (proc.stdout, proc.stderr):
+        if stream is not None:
+            stream.close()
+    return int(proc.returncode)

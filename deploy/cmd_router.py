@@ -1,0 +1,54 @@
+"""``mstc router``: a Zenoh router in a plain Python process (no plugins; use zenohd for
+REST or storages). Listens on loopback by default; connect routers of other hosts with
+--connect. Prints one ``ready`` line when listening; SIGTERM/SIGINT close it cleanly."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import signal
+import sys
+import threading
+from types import FrameType
+
+from bus.config import DEFAULT_ENDPOINT, add_connection_arguments, settings_from_args
+from bus.errors import BusError
+from bus.router import READY_MARK, run_router
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_connection_arguments(parser)
+    parser.add_argument("--exit-with-parent", action="store_true",
+                        help="stop when the process that started this router dies "
+                             "(used by tests and launchers so no router is orphaned)")
+    parser.set_defaults(mode="router")
+    parser.epilog = f"Default listen endpoint: {DEFAULT_ENDPOINT}."
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        settings = settings_from_args(args)
+        if settings.mode != "router":
+            settings = dataclasses.replace(settings, mode="router")
+        if not settings.listen:
+            settings = dataclasses.replace(settings, listen=(DEFAULT_ENDPOINT,))
+    except BusError as error:
+        print(f"mstc router: error: {error}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    parent = os.getppid() if args.exit_with_parent else None
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    try:
+        run_router(settings, stop, ready=lambda: print(
+            f"{READY_MARK}, listening on {', '.join(settings.listen)}", flush=True),
+            parent=parent)
+    except BusError as error:
+        print(f"mstc router: error: {error}", file=sys.stderr)
+        return 1
+    return 0

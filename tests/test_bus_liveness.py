@@ -1,0 +1,163 @@
+"""FailureDetector with an injected clock: timeouts, token grace, fencing, connectivity."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bus.liveness import FailureDetector
+from bus.messages import DeathNotice, Heartbeat
+
+
+def hb(robot: int, incarnation: int = 1, seq: int = 0) -> Heartbeat:
+    return Heartbeat(robot=robot, incarnation=incarnation, seq=seq, pose=None,
+                     state="running", sim_time=0.0)
+
+
+def test_silence_longer_than_timeout_is_death_reported_once() -> None:
+    fd = FailureDetector(timeout=1.0, detector=9)
+    fd.on_heartbeat(hb(1), now=10.0)
+    fd.on_heartbeat(hb(2), now=10.5)
+    assert fd.expire(11.0) == []  # exactly the timeout: not yet
+    notices = fd.expire(11.01)
+    assert notices == [DeathNotice(1, 1, 9, "heartbeat", 11.01)]
+    assert fd.expire(20.0) == [DeathNotice(2, 1, 9, "heartbeat", 20.0)]
+    assert fd.expire(30.0) == []
+    assert fd.alive() == {}
+
+
+def test_heartbeats_keep_a_robot_alive() -> None:
+    fd = FailureDetector(timeout=1.0)
+    for step in range(50):
+        fd.on_heartbeat(hb(1, seq=step), now=step * 0.5)
+        assert fd.expire(step * 0.5 + 0.9) == []
+    assert fd.alive() == {1: 1}
+
+
+def test_token_deletion_is_death_after_grace() -> None:
+    fd = FailureDetector(timeout=5.0, token_grace=0.1)
+    fd.on_token(3, 2, now=0.0)
+    fd.on_heartbeat(hb(3, 2), now=1.0)
+    fd.on_token_deleted(3, 2, now=1.0)
+    assert fd.expire(1.05) == []
+    assert [(n.robot, n.incarnation, n.reason) for n in fd.expire(1.1)] == [(3, 2, "token")]
+
+
+def test_token_back_within_grace_cancels_suspicion() -> None:
+    fd = FailureDetector(timeout=5.0, token_grace=0.1)
+    fd.on_token(3, 2, now=0.0)
+    fd.on_token_deleted(3, 2, now=1.0)
+    fd.on_token(3, 2, now=1.05)
+    assert fd.expire(2.0) == []
+
+
+def test_deletion_of_another_incarnation_does_not_kill_the_current_one() -> None:
+    fd = FailureDetector(timeout=5.0, token_grace=0.1)
+    fd.on_token(3, 2, now=0.0)
+    fd.on_token_deleted(3, 1, now=0.5)
+    assert fd.expire(1.0) == []
+
+
+def test_stale_incarnation_is_fenced_and_new_life_accepted() -> None:
+    fd = FailureDetector(timeout=1.0)
+    fd.on_heartbeat(hb(4, 1), now=0.0)
+    assert fd.expire(2.0)[0].incarnation == 1
+    # The old life wakes up (e.g. after SIGSTOP): it stays dead.
+    assert not fd.on_heartbeat(hb(4, 1), now=2.1)
+    assert fd.alive() == {}
+    assert fd.is_dead(4, 1)
+    # A restarted process (higher incarnation) is a new life.
+    assert fd.on_heartbeat(hb(4, 2), now=2.2)
+    assert fd.alive() == {4: 2}
+    assert not fd.is_dead(4, 2)
+    # Late heartbeats of the older life never replace the newer one.
+    assert not fd.on_heartbeat(hb(4, 1), now=2.3)
+    assert fd.alive() == {4: 2}
+
+
+def test_death_notices_from_others_are_adopted_once() -> None:
+    fd = FailureDetector(timeout=1.0, detector=0)
+    fd.on_heartbeat(hb(5, 3), now=0.0)
+    notice = DeathNotice(robot=5, incarnation=3, detected_by=1, reason="token", detected_at=0.2)
+    assert fd.on_death_notice(notice)
+    assert not fd.on_death_notice(notice)  # duplicate
+    assert not fd.on_death_notice(DeathNotice(5, 2, 1, "heartbeat", 0.3))  # older life
+    assert fd.alive() == {}
+    assert fd.expire(10.0) == []  # already known: not reported again
+    assert fd.deaths() == [notice]
+
+
+def test_disconnection_suspends_expiry_and_reconnection_restarts_timeouts() -> None:
+    fd = FailureDetector(timeout=1.0, token_grace=0.1)
+    for robot in (1, 2):
+        fd.on_token(robot, 1, now=0.0)
+        fd.on_heartbeat(hb(robot), now=0.0)
+    fd.set_connected(False, now=0.5)
+    # Our router went away: everybody's token disappears locally, heartbeats stop.
+    for robot in (1, 2):
+        fd.on_token_deleted(robot, 1, now=0.5)
+    assert fd.expire(5.0) == []
+    fd.set_connected(True, now=6.0)
+    fd.on_token(1, 1, now=6.2)  # robot 1 is re-announced; robot 2 died during the outage
+    fd.on_heartbeat(hb(1), now=6.9)
+    assert fd.expire(7.0) == []
+    assert [(n.robot, n.reason) for n in fd.expire(7.01)] == [(2, "heartbeat")]
+    assert fd.alive() == {1: 1}
+
+
+def test_deletion_raced_before_disconnect_is_forgiven() -> None:
+    fd = FailureDetector(timeout=1.0, token_grace=0.1)
+    fd.on_token(1, 1, now=0.0)
+    fd.on_token_deleted(1, 1, now=0.5)
+    fd.set_connected(False, now=0.55)
+    fd.set_connected(True, now=0.9)
+    fd.on_heartbeat(hb(1), now=1.0)
+    assert fd.expire(1.2) == []
+
+
+def test_invalid_parameters() -> None:
+    with pytest.raises(ValueError, match="timeout"):
+        FailureDetector(timeout=0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 2), st.floats(0, 0.5)), min_size=1, max_size=40),
+       st.floats(0.1, 1.0))
+def test_expiry_matches_brute_force(beats: list[tuple[int, float]], timeout: float) -> None:
+    """Random heartbeat gaps for robots 0..2, expire() called every 0.05 s: each robot is
+    declared dead at the first tick whose gap since its last beat exceeds the timeout."""
+    fd = FailureDetector(timeout=timeout)
+    now, schedule = 0.0, []
+    for robot, gap in beats:
+        now += gap
+        schedule.append((now, robot))
+    ticks = [i * 0.05 for i in range(int((now + 2 * timeout) / 0.05) + 2)]
+    # Oracle: replay per robot on its own.
+    expected: dict[int, float] = {}
+    for robot in {r for _, r in schedule}:
+        times = [t for t, r in schedule if r == robot]
+        for tick in ticks:
+            seen = [t for t in times if t <= tick]
+            if seen and tick - seen[-1] > timeout:
+                expected[robot] = tick
+                break
+    got: dict[int, float] = {}
+    events = iter(schedule)
+    pending = next(events, None)
+    for tick in ticks:
+        while pending is not None and pending[0] <= tick:
+            fd.on_heartbeat(hb(pending[1]), now=pending[0])
+            pending = next(events, None)
+        for notice in fd.expire(tick):
+            got.setdefault(notice.robot, tick)
+    # After a death the robot's later beats are fenced, so the first death is the only one.
+    assert got == expected
+
+
+def test_local_stall_gives_everyone_a_fresh_timeout() -> None:
+    fd = FailureDetector(timeout=1.0)
+    fd.on_heartbeat(hb(1), now=0.0)
+    fd.on_local_stall(now=30.0)  # we were SIGSTOPped for half a minute
+    assert fd.expire(30.5) == []
+    assert [n.robot for n in fd.expire(31.01)] == [1]

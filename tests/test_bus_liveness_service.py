@@ -1,0 +1,119 @@
+"""LivelinessService end to end: a robot process is SIGKILLed (token path) or SIGSTOPped
+(heartbeat path), peers declare it dead, and a woken stale life learns it is fenced."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import AsyncIterator
+
+import pytest
+
+from bus.bridge import Bus
+from bus.config import ConnectionSettings
+from bus.liveness import LivelinessService
+from bus.messages import DeathNotice
+
+pytestmark = pytest.mark.integration
+_missions = itertools.count()
+
+ROBOT = """
+import asyncio, sys
+from bus.bridge import Bus
+from bus.config import ConnectionSettings
+from bus.liveness import LivelinessService
+
+async def main():
+    settings = ConnectionSettings(connect=(sys.argv[1],), mission=sys.argv[2])
+    async with Bus.connect(settings) as bus:
+        service = LivelinessService(bus, robot=int(sys.argv[3]), incarnation=1,
+                                    heartbeat_period=0.1, timeout=0.6)
+        async with asyncio.TaskGroup() as group:
+            task = group.create_task(service.run())
+            print("ready", flush=True)
+            await service.fenced.wait()
+            print("fenced", flush=True)
+            task.cancel()
+
+asyncio.run(main())
+"""
+
+
+@pytest.fixture
+def mission() -> str:
+    return f"live{next(_missions)}"
+
+
+@pytest.fixture
+async def watcher(router: str, mission: str
+                  ) -> AsyncIterator[tuple[LivelinessService, list[DeathNotice]]]:
+    deaths: list[DeathNotice] = []
+    async with Bus.connect(ConnectionSettings(connect=(router,), mission=mission)) as bus:
+        service = LivelinessService(bus, robot=0, incarnation=1, heartbeat_period=0.1,
+                                    timeout=0.6, on_death=deaths.append)
+        async with asyncio.TaskGroup() as group:
+            task = group.create_task(service.run())
+            yield service, deaths
+            task.cancel()
+
+
+def start_robot(router: str, mission: str, robot: int) -> subprocess.Popen[str]:
+    proc = subprocess.Popen([sys.executable, "-c", ROBOT, router, mission, str(robot)],
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout is not None and proc.stdout.readline().strip() == "ready"
+    return proc
+
+
+def reap(proc: subprocess.Popen[str]) -> None:
+    proc.kill()
+    proc.wait()
+    assert proc.stdout is not None
+    proc.stdout.close()
+
+
+async def until(predicate: object, timeout: float) -> None:
+    assert callable(predicate)
+    async with asyncio.timeout(timeout):
+        while not predicate():
+            await asyncio.sleep(0.01)
+
+
+async def test_sigkill_is_detected_by_token(watcher: tuple[LivelinessService, list[DeathNotice]],
+                                            router: str, mission: str) -> None:
+    _bus, deaths = watcher
+    proc = start_robot(router, mission, 3)
+    try:
+        await asyncio.sleep(0.5)  # let heartbeats and the token reach the watcher
+        proc.send_signal(signal.SIGKILL)
+        killed = time.monotonic()
+        await until(lambda: deaths, timeout=3.0)
+        latency = time.monotonic() - killed
+        assert [(d.robot, d.incarnation, d.reason) for d in deaths] == [(3, 1, "token")]
+        print(f"SIGKILL -> death notice in {latency * 1000:.0f} ms")
+    finally:
+        reap(proc)
+
+
+async def test_hung_robot_is_declared_dead_and_fenced_when_it_wakes(
+        watcher: tuple[LivelinessService, list[DeathNotice]], router: str, mission: str) -> None:
+    service, deaths = watcher
+    proc = start_robot(router, mission, 4)
+    try:
+        await asyncio.sleep(0.5)
+        proc.send_signal(signal.SIGSTOP)
+        await until(lambda: deaths, timeout=5.0)
+        assert [(d.robot, d.reason) for d in deaths] in ([(4, "heartbeat")], [(4, "token")])
+        proc.send_signal(signal.SIGCONT)
+        assert proc.stdout is not None
+        line = await asyncio.wait_for(asyncio.to_thread(proc.stdout.readline), 10.0)
+        assert line.strip() == "fenced"
+        # The woken robot's stale view did not make it accuse the watcher.
+        await asyncio.sleep(0.5)
+        assert not service.fenced.is_set()
+        assert len(deaths) == 1 and service.detector.alive() == {}
+    finally:
+        reap(proc)
