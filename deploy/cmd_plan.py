@@ -8,12 +8,12 @@ import sys
 from typing import Any
 
 from deploy.cli import UsageError
-from planner.grid import work_area
+from planner.grid import cell_of, work_area
 from planner.maps import resolve_world
 from planner.metrics import PlanMetrics, plan_metrics
 from planner.pipeline import make_plan
 from planner.placement import parse_starts, random_starts
-from planner.trees import TREE_KINDS, build_tree
+from planner.trees import ALL_TREE_KINDS, build_tree
 from planner.types import Plan
 
 ALGOS = ("nb", "bt", "opt")
@@ -32,7 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed for placement and trees")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
                         help="nb: non-backtracking, bt: simple backtracking, opt: optimal")
-    parser.add_argument("--tree", choices=TREE_KINDS, default="dfs", help="spanning tree kind")
+    parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
+                        help="spanning tree kind (createtree: paper 000; tmstc: paper 002)")
     parser.add_argument("--speeds", metavar="S,S,...",
                         help="per-robot speeds (opt only), sub-cells per time unit")
     parser.add_argument("--fuel", metavar="F,F,...",
@@ -111,7 +112,8 @@ def run(args: argparse.Namespace) -> int:
     if (speeds or fuel) and args.algo != "opt":
         raise UsageError("--speeds and --fuel need --algo opt (paper 003, section 4.3)")
     area = work_area(grid, starts)
-    tree = build_tree(area.cells, args.tree, seed=args.seed)
+    tree = build_tree(area.cells, args.tree, seed=args.seed,
+                      starts=[cell_of(s) for s in starts])
     plan = make_plan(area, tree, args.algo, speeds=speeds, fuel=fuel)
     metrics = plan_metrics(plan)
     if args.json:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import random
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -20,6 +20,10 @@ from planner.grid import label_components
 from planner.types import BoolArray, Cell, IntArray, SpanningTree
 
 TREE_KINDS = ("dfs", "bfs", "random", "kruskal")
+# Trees from the papers' own constructions (planner.createtree, planner.tmstc); "createtree"
+# grows from the robots' start cells, so build_tree needs ``starts`` for it.
+PAPER_TREE_KINDS = ("createtree", "tmstc")
+ALL_TREE_KINDS = TREE_KINDS + PAPER_TREE_KINDS
 
 # Fixed neighbour order used when seed is None: north, east, south, west (as (dr, dc)).
 _DIRECTIONS: tuple[tuple[int, int], ...] = ((-1, 0), (0, 1), (1, 0), (0, -1))
@@ -31,7 +35,7 @@ _JITTER = 0.5
 
 
 def build_tree(cells: BoolArray, kind: str = "dfs", *, seed: int | None = 0,
-               root: Cell | None = None) -> SpanningTree:
+               root: Cell | None = None, starts: Sequence[Cell] | None = None) -> SpanningTree:
     """A spanning tree of the free cells ``cells`` (one 4-connected component).
 
     ``kind`` is one of TREE_KINDS. ``seed`` shuffles the neighbour order of dfs/bfs, drives the
@@ -39,10 +43,15 @@ def build_tree(cells: BoolArray, kind: str = "dfs", *, seed: int | None = 0,
     means no randomisation: dfs/bfs try neighbours north, east, south, west; kruskal uses its
     plain weights (ties broken by scipy's edge order); random uses seed 0. ``root`` (default:
     the first free cell in row-major order) is where dfs/bfs start and Wilson's tree is rooted.
+    ``starts`` (the robots' start cells) is needed by "createtree" (paper 000, Create Tree);
+    "tmstc" is TMSTC*'s turn-minimising tree (paper 002).
     """
     cells = _validate_cells(cells)
-    if kind not in TREE_KINDS:
-        raise TreeError(f"unknown tree kind {kind!r}; choose one of {', '.join(TREE_KINDS)}")
+    if kind not in ALL_TREE_KINDS:
+        raise TreeError(
+            f"unknown tree kind {kind!r}; choose one of {', '.join(ALL_TREE_KINDS)}")
+    if kind in PAPER_TREE_KINDS:
+        return _paper_tree(cells, kind, 0 if seed is None else seed, starts)
     root_flat = _root_index(cells, root)
     if kind == "kruskal":
         return _kruskal(cells, seed)
@@ -55,6 +64,20 @@ def build_tree(cells: BoolArray, kind: str = "dfs", *, seed: int | None = 0,
         walk = _dfs if kind == "dfs" else _bfs
         parent = walk(neighbours, root_flat, rng)
     return _tree_from_parents(cells, parent)
+
+
+def _paper_tree(cells: BoolArray, kind: str, seed: int,
+                starts: Sequence[Cell] | None) -> SpanningTree:
+    # imported here: both packages build on this module
+    if kind == "tmstc":
+        from planner.tmstc import tmstc_tree
+
+        return tmstc_tree(cells, seed=seed)
+    if not starts:
+        raise TreeError("the createtree kind grows one subtree per robot: it needs the starts")
+    from planner.createtree import create_tree
+
+    return create_tree(cells, list(starts), seed=seed)
 
 
 def tree_from_edges(cells: BoolArray, edges: Iterable[tuple[Cell, Cell]]) -> SpanningTree:

@@ -95,3 +95,13 @@ def test_based_starts_are_distinct_and_free() -> None:
     assert len(set(starts)) == 9
     fine = np.repeat(np.repeat(cells, 2, 0), 2, 1)
     assert all(fine[r, c] for r, c in starts)
+
+
+@pytest.mark.parametrize("tree", ["createtree", "tmstc"])
+def test_paper_trees_plan_the_whole_area(capsys: pytest.CaptureFixture[str], tree: str) -> None:
+    plan = run_json(capsys, "--map", "office", "--random-robots", "5", "--seed", "4",
+                    "--algo", "opt", "--tree", tree)
+    starts = [tuple(r["start"]) for r in plan["robots"]]
+    area = work_area(resolve_world("office"), starts)
+    covered = {tuple(p) for r in plan["robots"] for p in r["path"]}
+    assert covered == {tuple(map(int, p)) for p in np.argwhere(area.sub_cells)}
