@@ -8,6 +8,7 @@ import sys
 from typing import Any
 
 from deploy.cli import UsageError
+from planner.balanced import balanced_plan
 from planner.grid import cell_of, work_area
 from planner.maps import resolve_world
 from planner.metrics import PlanMetrics, plan_metrics
@@ -16,7 +17,7 @@ from planner.placement import parse_starts, random_starts
 from planner.trees import ALL_TREE_KINDS, build_tree
 from planner.types import Plan
 
-ALGOS = ("nb", "bt", "opt")
+ALGOS = ("nb", "bt", "opt", "balanced")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,7 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="place K robots at random free sub-cells (see --seed)")
     parser.add_argument("--seed", type=int, default=0, help="seed for placement and trees")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
-                        help="nb: non-backtracking, bt: simple backtracking, opt: optimal")
+                        help="nb: non-backtracking, bt: simple backtracking, opt: optimal "
+                        "backtracking (paper 003); balanced: near-equal connected regions, "
+                        "one STC walk each (--tree does not apply)")
     parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
                         help="spanning tree kind (createtree: paper 000; tmstc: paper 002)")
     parser.add_argument("--speeds", metavar="S,S,...",
@@ -112,15 +115,21 @@ def run(args: argparse.Namespace) -> int:
     if (speeds or fuel) and args.algo != "opt":
         raise UsageError("--speeds and --fuel need --algo opt (paper 003, section 4.3)")
     area = work_area(grid, starts)
-    tree = build_tree(area.cells, args.tree, seed=args.seed,
-                      starts=[cell_of(s) for s in starts])
-    plan = make_plan(area, tree, args.algo, speeds=speeds, fuel=fuel)
+    if args.algo == "balanced":
+        plan = balanced_plan(area, seed=args.seed)
+    else:
+        tree = build_tree(area.cells, args.tree, seed=args.seed,
+                          starts=[cell_of(s) for s in starts])
+        plan = make_plan(area, tree, args.algo, speeds=speeds, fuel=fuel)
     metrics = plan_metrics(plan)
     if args.json:
         json.dump(plan_to_json(plan, metrics), sys.stdout)
         sys.stdout.write("\n")
     else:
-        print("\n".join(summary_lines(plan, metrics, args.tree)))
+        tree_name = "own region per robot" if args.algo == "balanced" else args.tree
+        print("\n".join(summary_lines(plan, metrics, tree_name)))
+        for note in plan.notes:
+            print(f"note: {note}")
     if args.plot:
         from deploy.plot_plan import plot_plan
 

@@ -105,3 +105,14 @@ def test_paper_trees_plan_the_whole_area(capsys: pytest.CaptureFixture[str], tre
     area = work_area(resolve_world("office"), starts)
     covered = {tuple(p) for r in plan["robots"] for p in r["path"]}
     assert covered == {tuple(map(int, p)) for p in np.argwhere(area.sub_cells)}
+
+
+def test_balanced_plan_reaches_the_bound_on_an_open_grid(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    plan = run_json(capsys, "--map", "grid30x20", "--random-robots", "10", "--seed", "1",
+                    "--algo", "balanced")
+    starts = [tuple(r["start"]) for r in plan["robots"]]
+    area = work_area(resolve_world("grid30x20"), starts)
+    covered = {tuple(p) for r in plan["robots"] for p in r["path"]}
+    assert covered == {tuple(map(int, p)) for p in np.argwhere(area.sub_cells)}
+    assert plan["makespan"] <= plan["lower_bound"] + 2

@@ -1,0 +1,256 @@
+"""Balancing by chains of boundary transfers that keep every region connected.
+
+A *transfer* moves load across one region boundary: a whole cell (4 sub-cells) changes
+owner, or a cell is split (2 sub-cells) into two leaves hung off whole cells on opposite
+sides of it. A largest region passes one unit along a chain of neighbouring regions to one
+that is smaller by more than the unit (breadth-first search over the region graph, shortest
+chain first); every middle region gives one and gets one, so only the ends change. A donor
+never gives a pinned cell (a start or an anchor) or an articulation cell of its whole cells,
+so regions stay connected. When no chain helps, a region hands a neighbour a cell together
+with whatever that cell alone connects (_relieve), or two neighbours are re-split
+(reshape.py); split transfers come last because they pin cells for good. Every move lowers
+the sum of squared loads, so the loop ends; a cap bounds it anyway.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections import deque
+from dataclasses import dataclass
+
+from planner.balanced.reshape import reshape_pairs
+from planner.balanced.seeds import near_half
+from planner.balanced.state import SHARED, PartitionState
+from planner.balanced.types import LeafCell
+
+WHOLE, SPLIT = 4, 2  # sub-cells moved by one transfer of each kind
+_RETRIES = 4  # chains tried per donor when one fails on execution
+LOCAL_TEST_SIZE = 64  # regions larger than this try the local cut test first
+RESHAPES_PER_ROBOT = 2  # bound the costliest move (see reshape.py): how often,
+RESHAPE_PAIRS = 8  # and how many pairs each time
+
+
+@dataclass(frozen=True)
+class _Move:
+    cell: int
+    keep: int  # whole cell of the donor that anchors the donor's half (split only)
+    anchor: int  # whole cell of the receiver that anchors its half (split only)
+
+
+def balance(state: PartitionState, max_chains: int) -> int:
+    """Run moves until none improves the largest region; returns how many ran."""
+    done = 0
+    reshapes = 0
+    # No partition beats the average; regions hold an even number of sub-cells except where
+    # robots share a start cell, so the average rounded up to even is where to stop.
+    ideal = -(-sum(state.load) // state.k)
+    ideal += ideal % 2
+    while done < max_chains:
+        top = max(state.load)
+        if top <= ideal:
+            break
+        biggest = [r for r in range(state.k) if state.load[r] == top]
+        # Whole cells first; splits pin cells for good, so they come last.
+        if any(_improve(state, r, WHOLE) for r in biggest) or _relieve(state):
+            done += 1
+            continue
+        if reshapes < RESHAPES_PER_ROBOT * state.k and reshape_pairs(state, RESHAPE_PAIRS):
+            reshapes += 1
+            done += 1
+            continue
+        if not any(_improve(state, r, SPLIT) for r in biggest):
+            break
+        done += 1
+    return done
+
+
+def _improve(state: PartitionState, donor: int, unit: int) -> bool:
+    blocked: set[tuple[int, int]] = set()
+    for _ in range(_RETRIES):
+        chain = _find_chain(state, donor, unit, blocked)
+        if chain is None:
+            return False
+        failed = _execute(state, chain, unit)
+        if failed is None:
+            # Run the same chain again while it still pays: on large maps one search then
+            # moves many cells (each run still lowers the sum of squared loads).
+            while state.load[donor] - state.load[chain[-1]] > 2 * unit \
+                    and state.load[donor] == max(state.load) \
+                    and _execute(state, chain, unit) is None:
+                pass
+            return True
+        blocked.add(failed)
+    return False
+
+
+def _moves(state: PartitionState, giver: int, taker: int | None, unit: int) -> list[_Move]:
+    """Every transfer of ``unit`` from ``giver`` to ``taker`` (to any region when None)."""
+    whole = state.whole[giver]
+    if len(whole) < 2:
+        return []
+    _label, _w = state.label, state.width
+    out: list[_Move] = []
+    unsure: list[int] = []
+    # Exact cut cells cost a pass over the region; for a large region that changed since
+    # they were last computed, the constant-time local test decides most cells instead.
+    cut = state.cut_cells(giver) if state.has_cut_cells(giver) or len(whole) <= LOCAL_TEST_SIZE \
+        else None
+    for u in whole:
+        if state.pinned(u) or (cut is not None and u in cut):
+            continue
+        found = _moves_of(state, giver, taker, unit, u)
+        if not found:
+            continue  # an inner cell: no removability test needed
+        if cut is None and not state.locally_removable(giver, u):
+            unsure.append(u)
+            continue
+        out.extend(found)
+    if not out and unsure:
+        # Only now pay for the exact articulation cells (a cell on a loop may be removable).
+        cut = state.cut_cells(giver)
+        for u in unsure:
+            if u not in cut:
+                out.extend(_moves_of(state, giver, taker, unit, u))
+    return out
+
+
+def _moves_of(state: PartitionState, giver: int, taker: int | None, unit: int,
+              u: int) -> list[_Move]:
+    label, w = state.label, state.width
+    out: list[_Move] = []
+    for v in state.neighbours[u]:
+        y = label[v]
+        if y < 0 or y == giver or (taker is not None and y != taker):
+            continue
+        if unit == WHOLE:
+            out.append(_Move(u, -1, v))
+            continue
+        keep = 2 * u - v  # the cell on the far side of u from v
+        same_line = keep // w == u // w or keep % w == u % w
+        if 0 <= keep < len(label) and same_line and label[keep] == giver:
+            out.append(_Move(u, keep, v))
+    return out
+
+
+def _find_chain(state: PartitionState, donor: int, unit: int,
+                blocked: set[tuple[int, int]]) -> list[int] | None:
+    """Shortest chain of regions from ``donor`` to one that can take ``unit`` and gain."""
+    limit = state.load[donor] - unit - 1
+    parent = {donor: donor}
+    queue = deque([donor])
+    while queue:
+        x = queue.popleft()
+        for y in sorted({state.label[m.anchor] for m in _moves(state, x, None, unit)}):
+            if y in parent or (x, y) in blocked:
+                continue
+            parent[y] = x
+            if state.load[y] <= limit:
+                chain = [y]
+                while chain[-1] != donor:
+                    chain.append(parent[chain[-1]])
+                return chain[::-1]
+            queue.append(y)
+    return None
+
+
+def _execute(state: PartitionState, chain: list[int], unit: int) -> tuple[int, int] | None:
+    """Transfer along ``chain`` from its far end back; None, or the hop that failed."""
+    state.begin()
+    for giver, taker in reversed(list(itertools.pairwise(chain))):
+        moves = _moves(state, giver, taker, unit)
+        if not moves:
+            state.rollback()
+            return (giver, taker)
+        move = max(moves, key=lambda m: _contact(state, m.cell, taker)
+                   - _contact(state, m.cell, giver))
+        if unit == WHOLE:
+            state.release(giver, move.cell)
+            state.claim(taker, move.cell)
+        else:
+            _split(state, giver, taker, move)
+    state.commit()
+    return None
+
+
+def _contact(state: PartitionState, u: int, region: int) -> int:
+    """Neighbours of ``u`` in ``region``.
+
+    Giving cells that touch the taker most and the giver least keeps both compact; a region
+    eroded into a one-cell-wide strip could pass nothing on (all its cells would be cuts).
+    """
+    return sum(1 for v in state.neighbours[u] if state.label[v] == region)
+
+
+def _split(state: PartitionState, giver: int, taker: int, move: _Move) -> None:
+    cell = state.cell(move.cell)
+    state.release(giver, move.cell, SHARED)
+    for robot, anchor in ((giver, move.keep), (taker, move.anchor)):
+        a = state.cell(anchor)
+        side = (a[0] - cell[0], a[1] - cell[1])
+        state.add_leaf(robot, LeafCell(cell=cell, anchor=a, subs=near_half(cell, side)))
+        state.pin(anchor)
+
+
+def _relieve(state: PartitionState) -> bool:
+    """Best single hand-over of a boundary cell, with what it alone holds to its region.
+
+    Giving an articulation cell also gives the part of the region it cuts off (when that
+    part holds no pinned cell): this is how a region sheds a one-cell-wide strip that the
+    chains cannot pass a single cell through. Taken only when it lowers the sum of squared
+    loads, so the balancing loop still terminates.
+    """
+    best: tuple[int, int, int, list[int]] | None = None
+    low = min(state.load)
+    for giver in sorted(range(state.k), key=lambda r: -state.load[r]):
+        if len(state.whole[giver]) < 2 or state.load[giver] - low <= WHOLE:
+            continue
+        cut = state.cut_cells(giver)
+        for u in state.whole[giver]:
+            if state.pinned(u):
+                continue
+            takers = {y for y in (state.label[v] for v in state.neighbours[u])
+                      if y >= 0 and y != giver and state.load[y] + WHOLE < state.load[giver]}
+            if not takers:
+                continue
+            piece = _piece(state, giver, u) if u in cut else [u]
+            if not piece:
+                continue
+            amount = WHOLE * len(piece)
+            for y in takers:
+                gap = state.load[giver] - state.load[y] - amount
+                gain = amount * gap
+                if gap > 0 and (best is None or gain > best[0]):
+                    best = (gain, giver, y, piece)
+    if best is None:
+        return False
+    _, giver, taker, piece = best
+    for u in piece:
+        state.release(giver, u)
+        state.claim(taker, u)
+    return True
+
+
+def _piece(state: PartitionState, robot: int, u: int) -> list[int]:
+    """``u`` and the cells only it connects to the region's pinned cells ([] if any pinned)."""
+    cache = state.pieces.setdefault(robot, {})
+    if u not in cache:
+        cache[u] = _find_piece(state, robot, u)
+    return cache[u]
+
+
+def _find_piece(state: PartitionState, robot: int, u: int) -> list[int]:
+    whole = state.whole[robot]
+    roots = [v for v in whole if state.pinned(v)]
+    if not roots or u in roots:
+        return []
+    seen = {u, roots[0]}
+    stack = [roots[0]]
+    while stack:
+        a = stack.pop()
+        for b in state.neighbours[a]:
+            if b in whole and b not in seen:
+                seen.add(b)
+                stack.append(b)
+    if not all(v in seen for v in roots):
+        return []
+    return [u, *(v for v in whole if v not in seen)]

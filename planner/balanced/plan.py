@@ -1,0 +1,59 @@
+"""balanced_plan: balanced connected regions, one STC walk per robot inside its own region."""
+
+from __future__ import annotations
+
+import math
+
+from planner.balanced.coverage import region_path
+from planner.balanced.regions import plan_regions
+from planner.cycle import stc_cycle
+from planner.grid import WorkArea
+from planner.pipeline import make_plan
+from planner.trees import build_tree
+from planner.types import Plan, RobotPlan
+
+ALGO = "balanced"
+WALK_OUT = "balanced walk-out"  # note prefix of plans in which some sub-cells are revisited
+FALLBACK = "balanced fallback"  # note prefix of plans that are optimal MSTC instead
+
+
+def balanced_plan(area: WorkArea, *, seed: int = 0) -> Plan:
+    """A plan whose robots each cover one region of near-equal size, starting where they stand.
+
+    Robot r walks ``size_r - 1`` moves and no sub-cell is visited twice; with the regions as
+    balanced as the map allows the makespan is at most the lower bound ceil(n/k) - 1 plus
+    one (regions hold an even number of sub-cells). A robot boxed in by others' starts may
+    first walk out to a region elsewhere (a note starting with WALK_OUT says so; the walk
+    out crosses sub-cells that other robots cover too). ``plan.cycle`` is an STC cycle of the
+    whole area (a Kruskal tree from ``seed``): it gives each robot a ring position
+    (``start_index``) for the takeover order; the robots do not walk it, so ``legs`` are
+    empty. Never raises for a valid work-area: in the one case the partition cannot cover
+    the map (divided start cells walling off cells), the plan is optimal MSTC on that cycle.
+    """
+    tree = build_tree(area.cells, "kruskal", seed=seed)
+    cycle = stc_cycle(tree, start=area.starts[0])
+    k = len(area.starts)
+    bound = math.ceil(area.n / k) - 1
+    parts, routes = plan_regions(area, seed=seed)
+    if parts is None:
+        fallback = make_plan(area, tree, "opt")
+        note = (f"{FALLBACK}: cells shared by several robots' starts wall off part of the map; "
+                "fell back to optimal MSTC on the area's cycle")
+        return Plan(algo=ALGO, cycle=cycle, robots=fallback.robots, tree=tree,
+                    notes=(note, *fallback.notes))
+    robots = []
+    for region in parts.regions:
+        walk_out = routes.get(region.robot, (region.start,))
+        start = walk_out[0]
+        robots.append(RobotPlan(robot=region.robot, start=start,
+                                start_index=cycle.position(start), legs=(),
+                                path=walk_out[:-1] + region_path(region, seed=seed)))
+    sizes = parts.sizes
+    notes = [f"balanced: n = {area.n} sub-cells, k = {k} robots, lower bound ceil(n/k) - 1 = "
+             f"{bound} moves; regions of {min(sizes)}..{max(sizes)} sub-cells after "
+             f"{parts.transfers} balancing moves"]
+    if routes:
+        moves = ", ".join(f"robot {r}: {len(w) - 1}" for r, w in sorted(routes.items()))
+        notes.append(f"{WALK_OUT}: robots boxed in by others' starts walk out to their "
+                     f"regions first ({moves} moves), over sub-cells others cover too")
+    return Plan(algo=ALGO, cycle=cycle, robots=tuple(robots), tree=None, notes=tuple(notes))

@@ -1,0 +1,227 @@
+"""Mutable working state of the partition (private to the balanced planner).
+
+Cells are flat indices ``r * width + c`` of the coarse grid and neighbour lists are plain
+Python lists: the growth and transfer loops touch single cells thousands of times, where
+lists beat numpy element access several times over. Every change goes through a method that
+can log its inverse, so a chain of transfers that turns out infeasible half-way is undone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from planner.balanced.types import LeafCell, Partition, Region
+from planner.types import BoolArray, Cell, SubCell
+
+UNCLAIMED = -1
+SHARED = -2  # a cell divided between regions as leaves
+
+
+class PartitionState:
+    """Regions under construction: whole cells, leaves, pinned cells and loads (sub-cells).
+
+    ``offsets`` adds per robot the moves it spends before it reaches its region (a robot
+    that leaves a dead end first), so balancing evens out whole walks.
+    """
+
+    def __init__(self, cells: BoolArray, starts: Sequence[SubCell],
+                 offsets: Sequence[int] | None = None) -> None:
+        h, w = cells.shape
+        self.width = w
+        self.starts = tuple(starts)
+        self.k = len(starts)
+        free = cells.ravel().tolist()
+        self.free: list[bool] = [bool(f) for f in free]
+        self.neighbours: list[list[int]] = [[] for _ in range(h * w)]
+        for u in np.flatnonzero(cells.ravel()).tolist():
+            r, c = divmod(u, w)
+            for rr, cc in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
+                if 0 <= rr < h and 0 <= cc < w and free[rr * w + cc]:
+                    self.neighbours[u].append(rr * w + cc)
+        self.label: list[int] = [UNCLAIMED] * (h * w)
+        self.whole: list[set[int]] = [set() for _ in range(self.k)]
+        self.leaves: list[list[LeafCell]] = [[] for _ in range(self.k)]
+        # load = sub-cells held + moves spent before reaching the region (travel offset)
+        self.load: list[int] = list(offsets) if offsets is not None else [0] * self.k
+        self.pins: dict[int, int] = {}
+        self._cut: dict[int, set[int]] = {}
+        self.pieces: dict[int, dict[int, list[int]]] = {}  # balance._piece cache
+        self._log: list[Callable[[], None]] | None = None
+        self.transfers = 0
+
+    # -- coordinates ---------------------------------------------------------------------
+    def flat(self, cell: Cell) -> int:
+        return cell[0] * self.width + cell[1]
+
+    def cell(self, u: int) -> Cell:
+        r, c = divmod(u, self.width)
+        return (r, c)
+
+    def inside(self, cell: Cell) -> bool:
+        r, c = cell
+        h = len(self.free) // self.width
+        return 0 <= r < h and 0 <= c < self.width and self.free[self.flat(cell)]
+
+    # -- undo log ------------------------------------------------------------------------
+    def begin(self) -> None:
+        self._log = []
+
+    def commit(self) -> None:
+        self._log = None
+
+    def rollback(self) -> None:
+        log, self._log = self._log or [], None
+        for undo in reversed(log):
+            undo()
+
+    def _record(self, undo: Callable[[], None]) -> None:
+        if self._log is not None:
+            self._log.append(undo)
+
+    # -- changes -------------------------------------------------------------------------
+    def claim(self, robot: int, u: int) -> None:
+        """Make free cell ``u`` a whole cell of ``robot``'s region."""
+        self.label[u] = robot
+        self.whole[robot].add(u)
+        self.load[robot] += 4
+        self._cut.pop(robot, None)
+        self.pieces.pop(robot, None)
+        self._record(lambda: self.release(robot, u))
+
+    def release(self, robot: int, u: int, label: int = UNCLAIMED) -> None:
+        self.whole[robot].discard(u)
+        self.label[u] = label
+        self.load[robot] -= 4
+        self._cut.pop(robot, None)
+        self.pieces.pop(robot, None)
+        self._record(lambda: self.claim(robot, u))
+
+    def add_leaf(self, robot: int, leaf: LeafCell) -> None:
+        self.leaves[robot].append(leaf)
+        self.load[robot] += len(leaf.subs)
+        self._record(lambda: self.remove_leaf(robot, leaf))
+
+    def remove_leaf(self, robot: int, leaf: LeafCell) -> None:
+        self.leaves[robot].remove(leaf)
+        self.load[robot] -= len(leaf.subs)
+        self._record(lambda: self.add_leaf(robot, leaf))
+
+    def pin(self, u: int) -> None:
+        self.pieces.pop(self.label[u], None)  # cached pieces must now keep u
+        self.pins[u] = self.pins.get(u, 0) + 1
+        self._record(lambda: self.unpin(u))
+
+    def unpin(self, u: int) -> None:
+        self.pieces.pop(self.label[u], None)
+        self.pins[u] -= 1
+        if not self.pins[u]:
+            del self.pins[u]
+        self._record(lambda: self.pin(u))
+
+    def set_label(self, u: int, label: int) -> None:
+        old = self.label[u]
+        self.label[u] = label
+        self._record(lambda: self.set_label(u, old))
+
+    # -- queries -------------------------------------------------------------------------
+    def pinned(self, u: int) -> bool:
+        return u in self.pins
+
+    def has_cut_cells(self, robot: int) -> bool:
+        return robot in self._cut
+
+    def cut_cells(self, robot: int) -> set[int]:
+        """Articulation cells of the region's whole cells (cached until the region changes)."""
+        cut = self._cut.get(robot)
+        if cut is None:
+            cut = articulation_points(self.whole[robot], self.neighbours)
+            self._cut[robot] = cut
+        return cut
+
+    def locally_removable(self, robot: int, u: int) -> bool:
+        """Whether ``u``'s region neighbours stay linked around it (then ``u`` is no cut).
+
+        The 8 cells around ``u`` are walked as a ring; if the region's cells among them
+        that touch ``u`` all lie in one run of region cells along the ring, removing ``u``
+        cannot disconnect them. A sufficient test only (a loop round a hole is missed), so
+        callers fall back to cut_cells when it says no.
+        """
+        w = self.width
+        r, c = divmod(u, w)
+        h = len(self.label) // w
+        ring = []
+        for dr, dc in ((-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1), (0, -1)):
+            rr, cc = r + dr, c + dc
+            ring.append(0 <= rr < h and 0 <= cc < w and self.label[rr * w + cc] == robot)
+        if not any(ring[1::2]):
+            return False
+        return all(ring) or _side_runs(ring) == 1
+
+    def to_partition(self, transfers: int) -> Partition:
+        regions = []
+        for robot in range(self.k):
+            cells = tuple(sorted(self.cell(u) for u in self.whole[robot]))
+            regions.append(Region(robot=robot, start=self.starts[robot], cells=cells,
+                                  leaves=tuple(self.leaves[robot])))
+        return Partition(regions=tuple(regions), transfers=transfers)
+
+
+def articulation_points(nodes: set[int], neighbours: list[list[int]]) -> set[int]:
+    """Cut vertices of the subgraph induced by ``nodes`` (iterative Hopcroft-Tarjan)."""
+    out: set[int] = set()
+    depth: dict[int, int] = {}
+    low: dict[int, int] = {}
+    for root in nodes:
+        if root in depth:
+            continue
+        depth[root] = low[root] = 0
+        children = 0
+        stack: list[tuple[int, int, int]] = [(root, -1, 0)]
+        while stack:
+            u, parent, i = stack[-1]
+            nbrs = neighbours[u]
+            if i < len(nbrs):
+                stack[-1] = (u, parent, i + 1)
+                v = nbrs[i]
+                if v not in nodes or v == parent:
+                    continue
+                if v in depth:
+                    low[u] = min(low[u], depth[v])
+                else:
+                    depth[v] = low[v] = depth[u] + 1
+                    stack.append((v, u, 0))
+                continue
+            stack.pop()
+            if parent < 0:
+                continue
+            low[parent] = min(low[parent], low[u])
+            if parent == root:
+                children += 1
+            elif low[u] >= depth[parent]:
+                out.add(parent)
+        if children > 1:
+            out.add(root)
+    return out
+
+
+def _side_runs(ring: list[bool]) -> int:
+    """Runs of consecutive region cells round the ring that contain a side cell.
+
+    Adjacent ring cells are 4-adjacent to each other, so a run is connected; a corner cell
+    belongs to a run only if a side next to it does too.
+    """
+    start = ring.index(False)
+    runs = 0
+    has_side = False
+    inside = False
+    for j in range(1, 9):
+        i = (start + j) % 8
+        if ring[i]:
+            inside = True
+            has_side = has_side or i % 2 == 1
+        elif inside:
+            runs += has_side
+            inside = has_side = False
+    return runs
