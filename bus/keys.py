@@ -15,6 +15,10 @@ Layout (``<r>`` robot id, ``<i>`` incarnation)::
     mstc/<m>/ormstc/tree/<r>        ORMSTC tree edges (payload types: ORMSTC work)
     mstc/<m>/ormstc/claim/<r>       ORMSTC cell claims
     mstc/<m>/ormstc/conn/<r>        ORMSTC connections
+    mstc/<m>/ormstc/start/<r>       ORMSTC start sub-cell
+    mstc/<m>/ormstc/dead/<r>        ORMSTC "robot x is dead, its cells are free"
+    mstc/<m>/ormstc/done/<r>        ORMSTC completion
+    mstc/<m>/ormstc/withdraw/<r>    ORMSTC withdrawal of a completion
     mstc/<m>/hw/<r>/cmd             queryable (simhw): HwCommand -> HwReply
     mstc/<m>/hw/admin               queryable (simhw): AdminCommand -> AdminReply
     mstc/<m>/sim/pose/<r>           GroundTruthPose (sim only)
@@ -36,7 +40,7 @@ _MISSION_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 # Robot-scoped kinds whose key is mstc/<m>/<kind>/<robot>.
 _PER_ROBOT = ("hb", "status", "progress", "event", "death", "state")
-_ORMSTC = ("tree", "claim", "conn")
+_ORMSTC = ("tree", "claim", "conn", "start", "dead", "done", "withdraw")
 _SIM = ("pose", "cover", "bump")
 
 
@@ -147,8 +151,25 @@ def ormstc_conn(mission: str, robot: int) -> str:
     return f"{_base(mission)}/ormstc/conn/{_robot(robot)}"
 
 
+def ormstc_start(mission: str, robot: int) -> str:
+    return f"{_base(mission)}/ormstc/start/{_robot(robot)}"
+
+
+def ormstc_dead(mission: str, robot: int) -> str:
+    """Where robot ``robot`` says another robot is dead (the dead one is in the payload)."""
+    return f"{_base(mission)}/ormstc/dead/{_robot(robot)}"
+
+
+def ormstc_done(mission: str, robot: int) -> str:
+    return f"{_base(mission)}/ormstc/done/{_robot(robot)}"
+
+
+def ormstc_withdraw(mission: str, robot: int) -> str:
+    return f"{_base(mission)}/ormstc/withdraw/{_robot(robot)}"
+
+
 def all_ormstc(mission: str, what: str = "*") -> str:
-    """ORMSTC keys of all robots: ``what`` is "tree", "claim", "conn" or "*"."""
+    """ORMSTC keys of all robots: ``what`` is one of the ORMSTC kinds or "*"."""
     if what != "*" and what not in _ORMSTC:
         raise KeyExprError(f"unknown ORMSTC key kind {what!r}")
     return f"{_base(mission)}/ormstc/{what}/*"

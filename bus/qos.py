@@ -47,6 +47,8 @@ _BY_TYPE: dict[type[Any], Qos] = {
     m.CoverEvent: STREAM,
     m.BumpEvent: STREAM,
     m.WorldState: BULK,
+    # one priority for every ORMSTC kind keeps each sender's messages in order across keys
+    **{t: CRITICAL for t in m.ORMSTC_MESSAGES},
 }
 
 

@@ -18,7 +18,7 @@ from planner.types import OccupancyGrid
 from simhw.clock import make_clock
 from simhw.kinematics import Kinematics
 from simhw.service import HwService
-from simhw.types import Heading, Pose, ServerOptions, SonarMode, WorldConfig
+from simhw.types import DEAD_BODIES, Heading, Pose, ServerOptions, SonarMode, WorldConfig
 from simhw.world import World
 
 _HEADING_NAMES = {"N": Heading.N, "E": Heading.E, "S": Heading.S, "W": Heading.W,
@@ -89,6 +89,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frozen-hold", type=_non_negative, default=600.0, metavar="S",
                         help="wall seconds a command to a frozen body is held before it is "
                              "answered 'frozen' (default 600)")
+    parser.add_argument("--dead-bodies", choices=DEAD_BODIES, default="vanish",
+                        help="a dead robot's body: 'vanish' stops blocking others (the MSTC "
+                             "papers' assumption) or 'block' stays in the way (default vanish)")
     add_connection_arguments(parser)
 
 
@@ -124,7 +127,8 @@ def run(args: argparse.Namespace) -> int:
     from simhw.server import serve
 
     logging.basicConfig(level=logging.WARNING, format="simhw %(levelname)s %(message)s")
-    options = ServerOptions(time_scale=args.time_scale, frozen_hold_s=args.frozen_hold)
+    options = ServerOptions(time_scale=args.time_scale, frozen_hold_s=args.frozen_hold,
+                            dead_bodies=args.dead_bodies)
     try:
         settings = settings_from_args(args)
         asyncio.run(serve(settings, world, make_clock(args.time_scale), Kinematics(),

@@ -21,6 +21,7 @@ from bus.bridge import Bus
 from bus.config import ConnectionSettings
 from bus.messages import AdminCommand, HwCommand, HwReply
 from simhw.clock import SimClock
+from simhw.dead_bodies import watch_deaths
 from simhw.kinematics import Kinematics
 from simhw.service import HwService
 from simhw.types import ServerOptions
@@ -63,6 +64,7 @@ async def serve(settings: ConnectionSettings, world: World, clock: SimClock,
                             frozen_hold_s=options.frozen_hold_s)
         service.drops = bus.drops
         bind(bus, service)
+        watch_deaths(bus, service, options.dead_bodies)
         service.publish_initial()
         handled = []
         for sig in (signal.SIGTERM, signal.SIGINT):

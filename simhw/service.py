@@ -114,6 +114,11 @@ class HwService:
         self._incarnation[cmd.robot] = cmd.incarnation
         return ""
 
+    def fence_life(self, robot: int, incarnation: int) -> None:
+        """Refuse from now on every command of ``robot``'s lives up to ``incarnation``."""
+        newest = self._incarnation.get(robot, incarnation + 1)
+        self._incarnation[robot] = max(newest, incarnation + 1)
+
     async def _run_held(self, cmd: HwCommand) -> _Done:
         """Run the command, holding it while the body is frozen (a hung robot)."""
         try:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum, IntEnum
+from typing import Literal
 
 SubCell = tuple[int, int]
 
@@ -171,6 +172,11 @@ class BumpRecord:
     time: float
 
 
+# What happens to a dead robot's body (simhw.dead_bodies): out of the way, or in it.
+DeadBodies = Literal["vanish", "block"]
+DEAD_BODIES: tuple[DeadBodies, ...] = ("vanish", "block")
+
+
 @dataclass(frozen=True)
 class ServerOptions:
     """How the server runs: sim seconds per wall second (0 = as fast as possible) and how
@@ -178,3 +184,4 @@ class ServerOptions:
 
     time_scale: float = 0.0
     frozen_hold_s: float = 600.0
+    dead_bodies: DeadBodies = "vanish"

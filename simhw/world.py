@@ -44,6 +44,8 @@ class _Body:
     status: BodyStatus = BodyStatus.ALIVE
     target: SubCell | None = None
     bumper: bool = False
+    # A dead robot's body no longer holds its sub-cells (simhw.dead_bodies).
+    vanished: bool = False
 
 
 class World:
@@ -96,6 +98,8 @@ class World:
         """Every sub-cell held by a body (its own, and its reserved target while moving)."""
         out: dict[SubCell, int] = {}
         for robot, b in enumerate(self._bodies):
+            if b.vanished:
+                continue
             out[b.pose.sub] = robot
             if b.target is not None:
                 out[b.target] = robot
@@ -172,6 +176,10 @@ class World:
         b = self._get(robot)
         b.status = BodyStatus.FAILED
         b.target = None
+
+    def vanish(self, robot: int) -> None:
+        """The robot is dead: its body stops holding sub-cells (no bumps, no sonar echo)."""
+        self._get(robot).vanished = True
 
     def freeze(self, robot: int) -> None:
         b = self._get(robot)

@@ -1,0 +1,100 @@
+"""Options of ``mstc agent --algo ormstc`` and the configuration they make (no Zenoh here, so
+option mistakes are reported before the bus is loaded).
+
+Time options are wall-clock seconds: the machine is ticked with the agent's monotonic clock,
+because the one bound that matters for safety — a claim must wait longer than two one-way
+message delays — is a property of the network and the processes, not of simulated time
+(and with ``simhw --time-scale 0`` there is no shared simulated clock at all).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass
+
+from planner.ormstc.types import MachineConfig, Priority, SenseMode
+
+# Claim window (s): it must exceed twice the largest one-way delay of an ORMSTC message.
+# Measured claim round trip between two processes through a local router on the shared 2-core
+# machine (benchmarks/bench_ormstc_fleet.py latency): median 1.1-1.5 ms, p99 19-35 ms, worst
+# 117-197 ms at load averages 10-27; so a one-way delay up to ~120 ms, doubled, plus slack.
+DEFAULT_CLAIM_WAIT = 0.25
+DEFAULT_WATCH_INTERVAL = 0.5
+DEFAULT_BUMP_BACKOFF = 0.05
+
+
+@dataclass(frozen=True)
+class OrmstcConfig:
+    """One ORMSTC agent: identity, the machine's parameters, and the process's patience."""
+
+    robot: int
+    k: int
+    incarnation: int = 1
+    claim_wait: float = DEFAULT_CLAIM_WAIT
+    sense_mode: SenseMode = SenseMode.ALL
+    priority: Priority = Priority.ID
+    watch_interval: float = DEFAULT_WATCH_INTERVAL
+    bump_backoff: float = DEFAULT_BUMP_BACKOFF
+    announce_connections: bool = False
+    seed: int = 0
+    start_timeout: float = 30.0
+    heartbeat_period: float = 0.2
+    dead_after: float = 3.0
+    announce_period: float = 0.5
+    hw_timeout: float = 60.0
+    linger: float = 1.0
+
+    def machine(self, start: tuple[int, int]) -> MachineConfig:
+        return MachineConfig(
+            robot=self.robot, team=self.k, start=(float(start[0]), float(start[1])),
+            claim_wait=self.claim_wait, sense_mode=self.sense_mode, priority=self.priority,
+            watch_interval=self.watch_interval, bump_backoff=self.bump_backoff,
+            announce_connections=self.announce_connections, seed=self.seed)
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {text!r}")
+    return value
+
+
+def add_ormstc_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options only ``--algo ormstc`` reads (it reads no map: only simhw has one)."""
+    group = parser.add_argument_group("ORMSTC (--algo ormstc)")
+    group.add_argument("--claim-wait", type=_seconds, default=DEFAULT_CLAIM_WAIT,
+                       metavar="SECONDS",
+                       help="how long a claim waits for rival claims; must exceed twice the "
+                            "largest one-way message delay (default %(default)s)")
+    group.add_argument("--sense-mode", choices=[m.value for m in SenseMode],
+                       default=SenseMode.ALL.value,
+                       help="'single' senses one neighbouring cell per sonar command (use "
+                            "with simhw --sonar-mode one-at-a-time; default all)")
+    group.add_argument("--priority", choices=[p.value for p in Priority],
+                       default=Priority.ID.value,
+                       help="who wins a contested cell: highest id, or fewest cells "
+                            "(default id)")
+    group.add_argument("--watch-interval", type=_seconds, default=DEFAULT_WATCH_INTERVAL,
+                       metavar="SECONDS",
+                       help="after completion, ask about neighbours this often "
+                            "(default %(default)s)")
+    group.add_argument("--bump-backoff", type=_seconds, default=DEFAULT_BUMP_BACKOFF,
+                       metavar="SECONDS",
+                       help="back off 1-2 x this after a bump (default %(default)s)")
+    group.add_argument("--announce-connections", action="store_true",
+                       help="publish connection edges too (for monitors)")
+
+
+def ormstc_config_from_args(args: argparse.Namespace) -> OrmstcConfig:
+    return OrmstcConfig(
+        robot=args.id, k=args.robots, incarnation=args.incarnation,
+        claim_wait=args.claim_wait, sense_mode=SenseMode(args.sense_mode),
+        priority=Priority(args.priority), watch_interval=args.watch_interval,
+        bump_backoff=args.bump_backoff, announce_connections=args.announce_connections,
+        seed=args.seed, start_timeout=args.start_timeout,
+        heartbeat_period=args.heartbeat_period, dead_after=args.dead_after,
+        announce_period=args.announce_period, hw_timeout=args.hw_timeout, linger=args.linger)

@@ -1,0 +1,416 @@
+"""``mstc agent --algo ormstc``: drive one robot's OrmstcMachine with simhw's body and the bus.
+
+The machine (planner.ormstc) decides everything; this module carries its requests out, as
+simhw/lockstep.py does in-process:
+
+- ``Sense`` -> sonar commands (agent.ormstc_sensing: which sonar, turning first when the cell
+  is behind; ``--sense-mode single`` or a simhw in one-at-a-time mode: one sonar per
+  command), ``Move`` -> turns and one forward step (a bump is ``MoveResult(ok=False)``),
+  ``IsAlive`` -> the failure detector's verdict, ``Broadcast`` -> a bus message
+  (agent.ormstc_wire), ``Done`` -> status "done" and a "completed" event.
+- Peer messages and the liveness service's deaths become ``PeerMessage`` / ``PeerDied``;
+  the machine is ticked with the monotonic clock in seconds (agent.ormstc_config says why).
+
+Life cycle: read the pose, announce a status ("gathering") once subscribed, wait until every
+robot has announced one (so nobody's StartMsg is published before a peer listens), run the
+machine; once it reports Done and every other robot is done or dead, linger and leave.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import logging
+import signal
+import sys
+import time
+from typing import cast
+
+from agent.errors import (
+    AgentError,
+    FencedError,
+    GatherTimeoutError,
+    HardwareError,
+    LeaveRequested,
+)
+from agent.ormstc_body import Body
+from agent.ormstc_config import OrmstcConfig, ormstc_config_from_args
+from agent.ormstc_sensing import (
+    HEADING_DELTA,
+    SonarMap,
+    cell_of,
+    cells_in_view,
+    direction_of,
+    direction_to,
+    judge,
+    sensor_for,
+)
+from agent.ormstc_wire import WIRE_TYPES, Inbound, key_for, to_wire
+from bus import keys
+from bus.announce import Announcer
+from bus.bridge import BoundedFifo, Bus, LatestWins
+from bus.codec import encode
+from bus.config import ConnectionSettings, settings_from_args
+from bus.errors import BusError
+from bus.liveness import HeartbeatInfo, LivelinessService
+from bus.messages import (
+    DeathNotice,
+    EventKind,
+    Heartbeat,
+    OrmstcWire,
+    RobotEvent,
+    RobotStatus,
+    Sensor,
+)
+from planner.ormstc.machine import OrmstcMachine
+from planner.ormstc.types import (
+    AliveResult,
+    Broadcast,
+    Cell,
+    DeadRobotMsg,
+    Event,
+    IsAlive,
+    Move,
+    MoveResult,
+    PeerDied,
+    PeerMessage,
+    Request,
+    Sense,
+    SenseMode,
+    SenseResult,
+    SubCell,
+    Tick,
+)
+
+ALGO = "ormstc"
+STATIC_BUMPS = 3  # bumps into an obstacle (not a body) before the move is hopeless
+LEAVE_FLUSH_S = 0.1
+
+
+class OrmstcAgent:
+    """One ORMSTC robot process. ``await agent.run(settings)`` returns the exit code."""
+
+    def __init__(self, config: OrmstcConfig) -> None:
+        self.config = config
+        self.robot = config.robot
+        self.stop = asyncio.Event()
+        self.news = asyncio.Event()
+        self.machine: OrmstcMachine | None = None
+        self.sonar = SonarMap()
+        self.pending: list[Event] = []
+        self.statuses: dict[int, RobotStatus] = {}
+        self.dead: set[int] = set()
+        self.peer_cells: dict[int, Cell] = {}  # last heartbeat pose of each peer
+        self.start: SubCell | None = None
+        self.state = "starting"
+        self.sent = 0
+        self.sent_bytes = 0
+        self.error = ""
+        self._static_bumps = 0
+        self._t0 = time.monotonic()
+
+    # --- plumbing -------------------------------------------------------------------------
+
+    def now(self) -> float:
+        return time.monotonic() - self._t0
+
+    def _say(self, text: str) -> None:
+        print(f"agent {self.robot}: {text} [{self.now():.2f} s]", flush=True)
+
+    def _wire(self, bus: Bus) -> None:
+        c, m = self.config, bus.mission
+        self.bus = bus
+        self.body = Body(bus, self.robot, c.incarnation, c.hw_timeout)
+        self.inbound = Inbound(self.robot, c.k, bus.drops)
+        self.liveness = LivelinessService(
+            bus, self.robot, c.incarnation, heartbeat_period=c.heartbeat_period,
+            timeout=c.dead_after, info=self._heartbeat_info, on_death=self._on_death)
+        self.announcer = Announcer(bus, keys.state(m, self.robot), period=c.announce_period)
+        bus.subscribe(keys.all_ormstc(m), WIRE_TYPES, self._on_ormstc, BoundedFifo(65536))
+        bus.subscribe(keys.all_statuses(m), RobotStatus, self._on_status, LatestWins())
+        bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
+
+    def _heartbeat_info(self) -> HeartbeatInfo:
+        return HeartbeatInfo(pose=self.body.pose, state=self.state)
+
+    def _wake(self, event: Event | None = None) -> None:
+        if event is not None:
+            self.pending.append(event)
+        self.news.set()
+
+    def _on_ormstc(self, key: str, wire: OrmstcWire) -> None:
+        msg = self.inbound.accept(key, wire)
+        if msg is not None:
+            self._wake(PeerMessage(wire.robot, msg))
+
+    def _on_status(self, key: str, status: RobotStatus) -> None:
+        if 0 <= status.robot < self.config.k and status.robot != self.robot:
+            self.statuses[status.robot] = status
+            self._wake()
+
+    def _on_heartbeat(self, key: str, hb: Heartbeat) -> None:
+        if hb.pose is not None and hb.robot != self.robot:
+            self.peer_cells[hb.robot] = cell_of((hb.pose[0], hb.pose[1]))
+
+    def _on_death(self, notice: DeathNotice) -> None:
+        robot = notice.robot
+        if robot in self.dead or not 0 <= robot < self.config.k:
+            return
+        self.dead.add(robot)
+        self.announcer.set(keys.death(self.bus.mission, robot), notice, publish=False)
+        status = self.statuses.get(robot)
+        if status is not None and status.state == "done":
+            return  # it left after the mission was over for it: nothing to take over
+        self._wake(PeerDied(robot))
+
+    def _status(self, state: str, message: str = "") -> None:
+        self.state = state
+        if self.start is not None:
+            self.announcer.set(keys.status(self.bus.mission, self.robot), RobotStatus(
+                self.robot, self.config.incarnation, self.start, ALGO, "", state, message))
+
+    def _event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
+        self.bus.publish(keys.events(self.bus.mission, self.robot), RobotEvent(
+            self.robot, self.config.incarnation, kind, subject, detail))
+
+    def _broadcast(self, request: Broadcast) -> None:
+        self.sent += 1
+        wire = to_wire(request.message, self.config.incarnation, self.sent)
+        self.sent_bytes += len(encode(wire))
+        self.bus.publish(key_for(self.bus.mission, wire), wire)
+        if isinstance(request.message, DeadRobotMsg):  # for monitors and mstc up's summary
+            self._event("takeover_started", request.message.dead, "its cells are free again")
+
+    def may_hold_body(self, cell: Cell) -> bool:
+        """A robot body can stand in ``cell`` (see agent.ormstc_sensing)."""
+        know = self.machine.know if self.machine is not None else None
+        return (know is not None and (cell in know.owners or cell in know.claims.pending)) \
+            or cell in self.peer_cells.values()
+
+    # --- requests -------------------------------------------------------------------------
+
+    async def sense(self, request: Sense) -> SenseResult:
+        assert self.body.pose is not None
+        pos: SubCell = (self.body.pose[0], self.body.pose[1])
+        here = cell_of(pos)
+        target = request.cells[0]
+        if sensor_for(self.body.pose[2], direction_to(here, target)) is None:
+            await self.body.face((self.body.pose[2] + 1) % 4)  # the cell is behind
+        heading = self.body.pose[2]
+        wanted = request.cells if self.config.sense_mode is SenseMode.ALL else (target,)
+        view = cells_in_view(here, heading, wanted)
+        ranges = await self.body.sonar(tuple(cast(Sensor, s) for s in view.values()))
+        for sensor in set(view.values()):
+            self.sonar.record(pos, direction_of(heading, sensor), ranges.get(sensor),
+                              self.may_hold_body)
+        return SenseResult(tuple(
+            (cell, judge(cell, pos, direction_of(heading, sensor), ranges.get(sensor),
+                         self.sonar, self.may_hold_body)) for cell, sensor in view.items()))
+
+    async def move(self, to: SubCell) -> bool:
+        assert self.body.pose is not None
+        delta = (to[0] - self.body.pose[0], to[1] - self.body.pose[1])
+        await self.body.face(HEADING_DELTA.index(delta))
+        reply = await self.body.command("forward")
+        if reply.status == "ok":
+            self._static_bumps = 0
+            return True
+        if reply.status != "bumped":
+            raise HardwareError(f"robot {self.robot}: forward answered {reply.status}: "
+                                f"{reply.message}")
+        # A body moves on; an obstacle does not: one the sonar never saw (a thin ray sees
+        # half of a neighbouring cell) makes this move hopeless.
+        self._static_bumps = 0 if "body" in reply.message else self._static_bumps + 1
+        if self._static_bumps >= STATIC_BUMPS:
+            raise HardwareError(f"robot {self.robot}: {reply.message} {STATIC_BUMPS} times; "
+                                "an obstacle the sonar could not see is inside a cell it "
+                                "covers (see docs/ormstc.md, sensing)")
+        return False
+
+    def alive(self, robot: int) -> bool:
+        return robot not in self.dead
+
+    # --- the mission ----------------------------------------------------------------------
+
+    async def _gather(self) -> None:
+        pose = await self.body.wait_for_pose(self.config.start_timeout)
+        self.start = (pose[0], pose[1])
+        self._status("gathering")
+        self._say(f"body at {self.start}, gathering")
+        missing = self._not_announced
+        try:
+            async with asyncio.timeout(self.config.start_timeout):
+                while missing():
+                    self.news.clear()
+                    with contextlib.suppress(TimeoutError):
+                        async with asyncio.timeout(self.config.announce_period):
+                            await self.news.wait()
+        except TimeoutError:
+            raise GatherTimeoutError(f"robots {missing()} did not announce themselves within "
+                                     f"{self.config.start_timeout:g} s") from None
+
+    def _not_announced(self) -> list[int]:
+        return [r for r in range(self.config.k)
+                if r != self.robot and r not in self.statuses and r not in self.dead]
+
+    def _others_finished(self) -> bool:
+        return all(r == self.robot or r in self.dead
+                   or (r in self.statuses and self.statuses[r].state == "done")
+                   for r in range(self.config.k))
+
+    async def _drive(self, machine: OrmstcMachine) -> None:
+        answer: Event | None = None
+        reported = False  # the last Done state announced
+        settled_since: float | None = None
+        while True:
+            events: list[Event] = [Tick(self.now()), *self.pending]
+            self.pending = []
+            if answer is not None:
+                events.append(answer)
+                answer = None
+            for request in machine.step(events):
+                answer = await self._carry_out(request) or answer
+            if reported != machine.done_sent:  # Done, or taken back by a withdrawal
+                reported = machine.done_sent
+                self._finished(reported, machine)
+            if answer is not None or self.pending:
+                continue
+            now = self.now()
+            if reported and self._others_finished():
+                settled_since = now if settled_since is None else settled_since
+                if now - settled_since >= self.config.linger:
+                    return
+            else:
+                settled_since = None
+            wake = machine.wake_time()
+            delay = 0.0 if wake is None else min(wake - now, self.config.announce_period)
+            if delay > 0:
+                self.news.clear()
+                with contextlib.suppress(TimeoutError):
+                    async with asyncio.timeout(delay):
+                        await self.news.wait()
+
+    async def _carry_out(self, request: Request) -> Event | None:
+        """Do one request; the answer the machine waits for, if it waits for one."""
+        if isinstance(request, Broadcast):
+            self._broadcast(request)
+        elif isinstance(request, IsAlive):
+            return AliveResult(request.robot, self.alive(request.robot))
+        elif isinstance(request, Sense):
+            return await self.sense(request)
+        elif isinstance(request, Move):
+            return MoveResult(await self.move(request.to))
+        return None  # Done: read from machine.done_sent, which a withdrawal resets
+
+    def _finished(self, done: bool, machine: OrmstcMachine) -> None:
+        detail = (f"{machine.moves} moves, {len(machine.mine)} cells, {self.sent} messages, "
+                  f"{self.sent_bytes} bytes")
+        if done:
+            self._status("done")
+            self._event("completed", detail=detail)
+            self._say(f"done: {detail}")
+        else:
+            self._status("covering")
+            self._event("completion_withdrawn")
+            self._say("completion withdrawn")
+
+    async def _mission(self) -> None:
+        await self._gather()
+        assert self.start is not None
+        self.machine = OrmstcMachine(self.config.machine(self.start))
+        self._status("covering")
+        self._event("started")
+        self._say("driving")
+        await self._drive(self.machine)
+        self._say(f"completed after {self.machine.moves} moves")
+
+    # --- the process ----------------------------------------------------------------------
+
+    async def _watch_fence(self) -> None:
+        await self.liveness.fenced.wait()
+        raise FencedError(f"robot {self.robot} incarnation {self.config.incarnation} was "
+                          "declared dead; stopping")
+
+    async def _watch_stop(self) -> None:
+        await self.stop.wait()
+        raise LeaveRequested()
+
+    async def run(self, settings: ConnectionSettings) -> int:
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                loop.add_signal_handler(sig, self.stop.set)
+        async with Bus.connect(settings) as bus:
+            self._wire(bus)
+            try:
+                async with asyncio.TaskGroup() as group:
+                    background = [group.create_task(self.liveness.run()),
+                                  group.create_task(self.announcer.run()),
+                                  group.create_task(self._watch_fence()),
+                                  group.create_task(self._watch_stop())]
+                    await self._mission()
+                    for task in background:
+                        task.cancel()
+            except BaseExceptionGroup as group:
+                return await self._ending(_main_error(group))
+            self.liveness.leave()
+            await asyncio.sleep(LEAVE_FLUSH_S)
+        return 0
+
+    async def _ending(self, error: BaseException) -> int:
+        self.error = str(error) or type(error).__name__
+        if isinstance(error, LeaveRequested):
+            self._status("left", "SIGTERM/SIGINT")
+            self._event("leaving", detail="asked to stop")
+            self.liveness.leave()
+            code = 0
+        elif isinstance(error, FencedError):
+            self._status("fenced", str(error))
+            self._event("fenced", detail=str(error))
+            code = error.exit_code
+        elif isinstance(error, AgentError):
+            self._status("stopped", str(error))
+            self._event("stopped", detail=str(error))
+            self.liveness.leave()
+            code = error.exit_code
+        else:
+            raise error
+        await asyncio.sleep(LEAVE_FLUSH_S)
+        return code
+
+
+def _main_error(group: BaseExceptionGroup[BaseException]) -> BaseException:
+    """The exception that decides how the process ends (fencing first, then leaving)."""
+    flat = list(_leaves(group))
+    for kind in (FencedError, LeaveRequested, AgentError):
+        for exc in flat:
+            if isinstance(exc, kind):
+                return exc
+    return flat[0]
+
+
+def _leaves(exc: BaseException) -> list[BaseException]:
+    if isinstance(exc, BaseExceptionGroup):
+        return [leaf for inner in exc.exceptions for leaf in _leaves(inner)]
+    return [exc]
+
+
+def run_ormstc(args: argparse.Namespace) -> int:
+    """``mstc agent --algo ormstc``: exit codes as for the other algorithms (agent/main.py)."""
+    config = ormstc_config_from_args(args)
+    if config.robot >= config.k:
+        print(f"mstc agent: error: --id {config.robot} is not below --robots {config.k}",
+              file=sys.stderr)
+        return 2
+    logging.basicConfig(level=logging.WARNING,
+                        format=f"agent {config.robot} %(levelname)s %(message)s")
+    agent = OrmstcAgent(config)
+    try:
+        code = asyncio.run(agent.run(settings_from_args(args)))
+    except BusError as error:
+        print(f"mstc agent: error: {error}", file=sys.stderr)
+        return 2
+    if code != 0:
+        print(f"mstc agent {config.robot}: error: {agent.error}", file=sys.stderr)
+    return code

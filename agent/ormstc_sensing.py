@@ -1,0 +1,118 @@
+"""Sonar geometry of the ORMSTC driver: how to look at a neighbouring cell, what a reading says.
+
+simhw's sonar is a thin ray along one of the four headings from the body's own sub-cell
+(docs/simhw.md), so it crosses one row (or column) of a neighbouring cell: the two sub-cells
+at distance ``near`` and ``near + 1``, where ``near`` is 1 or 2 depending on how many of the
+robot's own sub-cells lie ahead. Whatever the ray shows is remembered in a :class:`SonarMap`;
+the other half of the cell is judged from that memory (unseen sub-cells count as free).
+
+A blocked sub-cell is a robot body or a static obstacle; the ray cannot tell which. Bodies
+only stand in cells their robot owns or is claiming, and ownership is announced before a body
+enters, so a blocked sub-cell in a cell nobody ever owned or claimed is an obstacle, and one
+in a cell someone did (or where a peer's heartbeat pose lies) is reported as a body. Pure: no
+I/O, no clock.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+
+from planner.ormstc.types import Cell, CellStatus, SubCell
+
+# Headings as in bus.messages: 0 = N, 1 = E, 2 = S, 3 = W (clockwise); a right turn is +1.
+HEADING_DELTA: tuple[SubCell, ...] = ((-1, 0), (0, 1), (1, 0), (0, -1))
+_RELATIVE_SENSOR = {0: "front", 1: "right", 3: "left"}
+
+BodyTest = Callable[[Cell], bool]
+
+
+def cell_of(sub: SubCell) -> Cell:
+    return (sub[0] >> 1, sub[1] >> 1)
+
+
+def direction_to(cell: Cell, other: Cell) -> int:
+    """The heading of the step from ``cell`` to the 4-adjacent ``other``."""
+    delta = (other[0] - cell[0], other[1] - cell[1])
+    if delta not in HEADING_DELTA:
+        raise ValueError(f"cell {other} is not next to cell {cell}")
+    return HEADING_DELTA.index(delta)
+
+
+def sensor_for(heading: int, direction: int) -> str | None:
+    """The sonar ("front", "left", "right") looking along ``direction``; None if behind."""
+    return _RELATIVE_SENSOR.get((direction - heading) % 4)
+
+
+def direction_of(heading: int, sensor: str) -> int:
+    offset = {"front": 0, "right": 1, "left": 3}[sensor]
+    return (heading + offset) % 4
+
+
+def ahead(pos: SubCell, direction: int, steps: int) -> SubCell:
+    dr, dc = HEADING_DELTA[direction]
+    return (pos[0] + steps * dr, pos[1] + steps * dc)
+
+
+def near_distance(pos: SubCell, direction: int) -> int:
+    """Ray distance from ``pos`` to the first sub-cell of the neighbouring cell that way."""
+    row, col = pos[0] & 1, pos[1] & 1
+    inside = (row, 1 - col, 1 - row, col)[direction]  # own sub-cells still ahead: N E S W
+    return inside + 1
+
+
+def sub_cells(cell: Cell) -> tuple[SubCell, ...]:
+    r, c = 2 * cell[0], 2 * cell[1]
+    return ((r, c), (r, c + 1), (r + 1, c), (r + 1, c + 1))
+
+
+@dataclass
+class SonarMap:
+    """Sub-cells rays have shown free, and those shown blocked where no body can be."""
+
+    max_range: int = 8
+    free: set[SubCell] = field(default_factory=set)
+    static: set[SubCell] = field(default_factory=set)  # obstacles for certain
+
+    def record(self, pos: SubCell, direction: int, reading: int | None,
+               may_hold_body: BodyTest) -> SubCell | None:
+        """Remember one ray; return the blocked sub-cell it hit, if any."""
+        last = self.max_range if reading is None else reading - 1
+        for step in range(1, last + 1):
+            self.free.add(ahead(pos, direction, step))
+        if reading is None:
+            return None
+        hit = ahead(pos, direction, reading)
+        if not may_hold_body(cell_of(hit)):
+            self.static.add(hit)
+            self.free.discard(hit)
+        return hit
+
+
+def judge(cell: Cell, pos: SubCell, direction: int, reading: int | None, sonar: SonarMap,
+          may_hold_body: BodyTest) -> CellStatus:
+    """Status of the neighbouring ``cell`` from a ray along ``direction`` read at ``pos``.
+
+    The ray's half decides first (a hit inside the cell: obstacle or body, see the module
+    doc); the unseen half is an obstacle only if a ray once showed a static obstacle there
+    and no body can be in the cell.
+    """
+    near = near_distance(pos, direction)
+    if reading is not None and reading < near:
+        return CellStatus.ROBOT  # something inside the robot's own cell can only be a body
+    if reading is not None and reading <= near + 1:
+        return CellStatus.ROBOT if may_hold_body(cell) else CellStatus.OBSTACLE
+    # a remembered hit in a cell someone owned or claimed may have been a body since gone
+    if not may_hold_body(cell) and any(sub in sonar.static for sub in sub_cells(cell)):
+        return CellStatus.OBSTACLE
+    return CellStatus.FREE
+
+
+def cells_in_view(cell: Cell, heading: int, wanted: Iterable[Cell]) -> dict[Cell, str]:
+    """Which sonar sees each ``wanted`` neighbour of ``cell`` without turning."""
+    out: dict[Cell, str] = {}
+    for other in wanted:
+        sensor = sensor_for(heading, direction_to(cell, other))
+        if sensor is not None:
+            out[other] = sensor
+    return out

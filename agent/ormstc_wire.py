@@ -1,0 +1,130 @@
+"""ORMSTC machine messages <-> bus messages, and the checks every received one passes.
+
+The planner's messages (planner.ormstc.types) carry no life and no order; on the wire each
+becomes its bus.messages twin with the sender's ``incarnation`` and ``seq`` (1, 2, ... per
+life, over all ORMSTC kinds), published on ``mstc/<m>/ormstc/<kind>/<robot>``. All kinds share
+one QoS (bus.qos CRITICAL), so one sender's messages stay in order across keys: the machine
+assumes FIFO per sender. A receiver drops (and counts) a message about a robot outside the
+fleet, on a key naming another robot, or from a life older than one already heard; a gap in
+``seq`` is counted, not repaired (what Zenoh loses during a router outage stays lost).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from bus import keys
+from bus.drops import DropCounter
+from bus.messages import (
+    ORMSTC_MESSAGES,
+    OrmstcClaim,
+    OrmstcCompletion,
+    OrmstcConnection,
+    OrmstcDeadRobot,
+    OrmstcStart,
+    OrmstcTreeEdge,
+    OrmstcWire,
+    OrmstcWithdrawal,
+)
+from planner.ormstc.types import (
+    ClaimMsg,
+    CompletionMsg,
+    ConnectionMsg,
+    DeadRobotMsg,
+    Message,
+    StartMsg,
+    TreeEdgeMsg,
+    WithdrawalMsg,
+)
+
+WIRE_TYPES = ORMSTC_MESSAGES
+
+_KEY: dict[type, Callable[[str, int], str]] = {
+    OrmstcStart: keys.ormstc_start, OrmstcClaim: keys.ormstc_claim,
+    OrmstcTreeEdge: keys.ormstc_tree, OrmstcConnection: keys.ormstc_conn,
+    OrmstcDeadRobot: keys.ormstc_dead, OrmstcCompletion: keys.ormstc_done,
+    OrmstcWithdrawal: keys.ormstc_withdraw,
+}
+
+
+def to_wire(msg: Message, incarnation: int, seq: int) -> OrmstcWire:
+    """The bus message for a machine message of this life."""
+    r, i, s = msg.robot, incarnation, seq
+    if isinstance(msg, StartMsg):
+        return OrmstcStart(r, i, s, msg.sub)
+    if isinstance(msg, ClaimMsg):
+        return OrmstcClaim(r, i, s, msg.cell, msg.covered)
+    if isinstance(msg, TreeEdgeMsg):
+        return OrmstcTreeEdge(r, i, s, msg.parent, msg.child)
+    if isinstance(msg, ConnectionMsg):
+        return OrmstcConnection(r, i, s, msg.peer, msg.mine, msg.theirs)
+    if isinstance(msg, DeadRobotMsg):
+        return OrmstcDeadRobot(r, i, s, msg.dead)
+    if isinstance(msg, CompletionMsg):
+        return OrmstcCompletion(r, i, s, msg.cells)
+    return OrmstcWithdrawal(r, i, s, msg.peer)
+
+
+def from_wire(wire: OrmstcWire) -> Message:
+    """The machine message a bus message carries."""
+    if isinstance(wire, OrmstcStart):
+        return StartMsg(wire.robot, wire.sub)
+    if isinstance(wire, OrmstcClaim):
+        return ClaimMsg(wire.robot, wire.cell, wire.covered)
+    if isinstance(wire, OrmstcTreeEdge):
+        return TreeEdgeMsg(wire.robot, wire.parent, wire.child)
+    if isinstance(wire, OrmstcConnection):
+        return ConnectionMsg(wire.robot, wire.peer, wire.mine, wire.theirs)
+    if isinstance(wire, OrmstcDeadRobot):
+        return DeadRobotMsg(wire.robot, wire.dead)
+    if isinstance(wire, OrmstcCompletion):
+        return CompletionMsg(wire.robot, wire.cells)
+    return WithdrawalMsg(wire.robot, wire.peer)
+
+
+def key_for(mission: str, wire: OrmstcWire) -> str:
+    return _KEY[type(wire)](mission, wire.robot)
+
+
+@dataclass
+class Inbound:
+    """Per-sender bookkeeping of received ORMSTC messages (one robot's view of the fleet)."""
+
+    me: int
+    k: int
+    drops: DropCounter
+    life: dict[int, int] = field(default_factory=dict)  # robot -> newest incarnation heard
+    last_seq: dict[int, int] = field(default_factory=dict)
+    gaps: int = 0
+
+    def accept(self, key: str, wire: OrmstcWire) -> Message | None:
+        """The machine message to deliver, or None (own echo, or dropped and counted)."""
+        robot = wire.robot
+        kind = keys.kind_of(key)
+        parsed = keys.parse(key)
+        if parsed is None or parsed.robot != robot or not 0 <= robot < self.k:
+            self.drops.count(kind, "invalid", f"robot {robot} on {key} (fleet 0..{self.k - 1})")
+            return None
+        if robot == self.me:
+            return None
+        newest = self.life.get(robot, wire.incarnation)
+        if wire.incarnation < newest:
+            self.drops.count(kind, "stale", f"robot {robot} life {wire.incarnation} < {newest}")
+            return None
+        if wire.incarnation > newest:
+            self.last_seq.pop(robot, None)
+        self.life[robot] = wire.incarnation
+        expected = self.last_seq.get(robot, 0) + 1
+        if wire.seq > expected:
+            self.gaps += wire.seq - expected
+            self.drops.count(kind, "gap", f"robot {robot}: seq {wire.seq}, expected {expected}")
+        self.last_seq[robot] = max(wire.seq, self.last_seq.get(robot, 0))
+        if self._peers_out_of_range(wire):
+            self.drops.count(kind, "invalid", f"{wire} names a robot outside the fleet")
+            return None
+        return from_wire(wire)
+
+    def _peers_out_of_range(self, wire: OrmstcWire) -> bool:
+        other = getattr(wire, "dead", getattr(wire, "peer", None))
+        return other is not None and not 0 <= other < self.k

@@ -1,0 +1,337 @@
+"""The agent process: one robot's life from start-up to leaving, in one asyncio TaskGroup.
+
+Life cycle: read the start pose from the body, announce it (RobotStatus), gather every
+robot's start, compute the plan, announce its digest and compare the others', drive the plan
+(OfflineRunner), announce completion, linger, leave. Beside the mission run the liveness
+service (token, heartbeats, failure detector), the announcer (re-publishes status, known
+deaths and the mission verdict; answers state queries) and three watchers that end the group
+with a specific exception: own death notice (FencedError), SIGTERM/SIGINT (LeaveRequested),
+a peer's "failed" verdict (MissionFailedError).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import signal
+import time
+from collections.abc import Callable
+from typing import Any
+
+from agent.errors import (
+    AgentError,
+    DigestMismatchError,
+    FencedError,
+    GatherTimeoutError,
+    LeaveRequested,
+    MissionFailedError,
+)
+from agent.hardware import Hardware
+from agent.peers import PeerTable
+from agent.plan import compute_plan, plan_digest
+from agent.runner import OfflineRunner
+from agent.types import AgentConfig, AgentState, pack_covered
+from bus import keys
+from bus.announce import Announcer
+from bus.bridge import BoundedFifo, Bus, LatestWins, Received
+from bus.config import ConnectionSettings
+from bus.liveness import HeartbeatInfo, LivelinessService
+from bus.messages import (
+    DeathNotice,
+    EventKind,
+    MissionState,
+    MissionStatus,
+    Progress,
+    RobotEvent,
+    RobotStatus,
+)
+from planner.errors import PlannerError
+from planner.maps import resolve_world
+from planner.takeover import OfflineRobot
+from planner.types import Plan
+
+_log = logging.getLogger("mstc.agent")
+_T0 = time.monotonic()
+STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress)
+LEAVE_FLUSH_S = 0.1
+
+
+class _StateAnnouncer(Announcer):
+    """The bus Announcer plus the agent's knowledge (AgentState) in every state reply."""
+
+    def __init__(self, agent: Agent, bus: Bus, key: str, period: float) -> None:
+        super().__init__(bus, key, period=period)
+        self._agent = agent
+
+    def messages(self) -> list[Any]:
+        return [*super().messages(), self._agent.state_message()]
+
+
+class Agent:
+    """One robot. ``await agent.run(settings)`` returns the process exit code."""
+
+    def __init__(self, config: AgentConfig) -> None:
+        self.config = config
+        self.robot = config.robot
+        self.incarnation = config.incarnation
+        self.grid = resolve_world(config.world, config.cell_size)
+        self.stop = asyncio.Event()
+        self.phase = "starting"
+        self.start: tuple[int, int] | None = None
+        self.digest = ""
+        self.plan: Plan | None = None
+        self.runner: OfflineRunner | None = None
+        self.error = ""
+
+    # --- plumbing -------------------------------------------------------------------------
+
+    def _wire(self, bus: Bus) -> None:
+        self.bus = bus
+        m = bus.mission
+        self.peers = PeerTable(self.robot, self.config.k, bus.drops)
+        self.hardware = Hardware(bus, self.robot, self.incarnation,
+                                 timeout=self.config.hw_timeout)
+        self.liveness = LivelinessService(
+            bus, self.robot, self.incarnation, heartbeat_period=self.config.heartbeat_period,
+            timeout=self.config.dead_after, info=self._heartbeat_info,
+            on_death=self._on_death)
+        self.announcer = _StateAnnouncer(self, bus, keys.state(m, self.robot),
+                                         self.config.announce_period)
+        bus.subscribe(keys.all_statuses(m), RobotStatus, self.peers.on_status,
+                      BoundedFifo(4096))
+        bus.subscribe(keys.all_progress(m), Progress, self._on_progress, BoundedFifo(65536))
+        bus.subscribe(keys.mission_status(m), MissionStatus, self.peers.on_mission,
+                      LatestWins())
+
+    def _say(self, text: str) -> None:
+        """One life-cycle line on stdout (launchers and tests wait for them)."""
+        print(f"agent {self.robot}: {text} [{time.monotonic() - _T0:.2f} s]", flush=True)
+
+    def _heartbeat_info(self) -> HeartbeatInfo:
+        return HeartbeatInfo(pose=self.hardware.state.pose, state=self._phase(),
+                             sim_time=self.hardware.state.sim_time)
+
+    def _phase(self) -> str:
+        return self.runner.phase if self.runner is not None and self.phase == "driving" \
+            else self.phase
+
+    def _on_progress(self, key: str, msg: Progress) -> None:
+        if msg.robot != self.robot:
+            self.peers.on_progress(key, msg)
+
+    def _on_death(self, notice: DeathNotice) -> None:
+        # Deaths are durable facts: re-announce them so a restarted router loses none.
+        self.announcer.set(keys.death(self.bus.mission, notice.robot), notice, publish=False)
+        self.peers.on_death(notice)
+
+    def state_message(self) -> AgentState:
+        machine = self.peers.machine
+        drops = {f"{kind}.{why}": n for (kind, why), n in self.bus.drops.snapshot().items()}
+        return AgentState(
+            robot=self.robot, incarnation=self.incarnation, state=self._phase(),
+            moves=self.runner.moves if self.runner else 0,
+            n=machine.cycle.n if machine else 0,
+            covered=pack_covered(machine.covered) if machine else b"",
+            dead=tuple(sorted(self.peers.dead)),
+            took_over=tuple(self.runner.took_over) if self.runner else (), drops=drops)
+
+    def _status(self, state: str, message: str = "") -> None:
+        if self.start is None:
+            return
+        drops = self.bus.drops.total()
+        text = message or (f"drops {drops}" if drops else "")
+        status = RobotStatus(self.robot, self.incarnation, self.start, self.config.algo,
+                             self.digest, state, text)
+        self.peers.on_status(keys.status(self.bus.mission, self.robot), status)
+        self.announcer.set(keys.status(self.bus.mission, self.robot), status)
+
+    def _event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
+        self.bus.publish(keys.events(self.bus.mission, self.robot),
+                         RobotEvent(self.robot, self.incarnation, kind, subject, detail))
+
+    def _mission_status(self, state: MissionState, message: str,
+                        **summary: int | float | str) -> None:
+        status = MissionStatus(state, message, dict(summary))
+        self.announcer.set(keys.mission_status(self.bus.mission), status)
+        self.peers.on_mission(keys.mission_status(self.bus.mission), status)
+
+    async def refresh(self) -> None:
+        """Pull every robot's re-learnable state (coverage, deaths, statuses)."""
+        replies: list[Received[Any]] = await self.bus.query(
+            keys.all_states(self.bus.mission), None, STATE_KINDS,
+            timeout=min(1.0, self.config.announce_period * 2))
+        for rx in replies:
+            msg = rx.msg
+            if isinstance(msg, RobotStatus):
+                self.peers.on_status(keys.status(self.bus.mission, msg.robot), msg)
+            elif isinstance(msg, AgentState) and msg.robot != self.robot:
+                self.peers.on_state(rx.key, msg)
+            elif isinstance(msg, DeathNotice):
+                if msg.robot == self.robot and msg.incarnation >= self.incarnation:
+                    self.liveness.fenced.set()
+                elif msg.robot != self.robot:
+                    self._on_death(msg)
+            elif isinstance(msg, MissionStatus):
+                self.peers.on_mission(rx.key, msg)
+
+    # --- the mission ----------------------------------------------------------------------
+
+    async def _gather(self) -> list[tuple[int, int]]:
+        pose = await self.hardware.wait_for_pose(self.config.start_timeout)
+        self.start = (int(pose[0]), int(pose[1]))
+        self.phase = "gathering"
+        self._say(f"body at {self.start}, gathering")
+        self._status("gathering")
+        await self._until(self.peers.missing_starts, "announce their start")
+        return [(self.peers.statuses[r].start[0], self.peers.statuses[r].start[1])
+                for r in range(self.config.k)]
+
+    async def _until(self, missing: Callable[[], list[int]], what: str,
+                     check: Callable[[], None] | None = None) -> None:
+        """Wait until ``missing()`` is empty (running ``check`` on every news);
+        GatherTimeoutError naming the robots still missing."""
+        try:
+            async with asyncio.timeout(self.config.start_timeout):
+                while missing():
+                    if check is not None:
+                        check()
+                    await self.refresh()
+                    await self.peers.wait_news(self.config.announce_period)
+        except TimeoutError:
+            raise GatherTimeoutError(
+                f"robots {missing()} did not {what} within {self.config.start_timeout:g} s "
+                f"(mission {self.bus.mission!r}, {self.config.k} robots expected)") from None
+
+    def _check_digests(self) -> None:
+        others = {r: s.plan_digest for r, s in self.peers.statuses.items()
+                  if s.plan_digest and s.plan_digest != self.digest}
+        if others:
+            described = ", ".join(f"robot {r} has {d[:12]}" for r, d in sorted(others.items()))
+            raise DigestMismatchError(
+                f"plan digest mismatch: robot {self.robot} (this one) has {self.digest[:12]}, "
+                f"{described}; check that every agent got the same --world, --algo, --tree, "
+                f"--seed and --robots")
+
+    async def _mission(self) -> None:
+        starts = await self._gather()
+        self.phase = "planning"
+        try:
+            self.plan = compute_plan(self.grid, starts, self.config.algo, self.config.tree,
+                                     self.config.seed)
+        except PlannerError as error:
+            self._mission_status("failed", f"robot {self.robot} cannot plan: {error}")
+            raise
+        self.digest = plan_digest(self.plan)
+        self._say(f"plan {self.digest[:12]} makespan {self.plan.makespan} moves, mine "
+                  f"{self.plan.robots[self.robot].steps}")
+        self._status("planned")
+        self._check_digests()
+        await self._until(self.peers.missing_digests, "announce their plan digest",
+                          self._check_digests)
+        self._check_digests()
+        machine = OfflineRobot(self.plan, self.robot)
+        self.peers.attach(machine)
+        self.runner = OfflineRunner(self.bus, self.hardware, self.peers, machine,
+                                    self.incarnation, refresh=self.refresh,
+                                    refresh_period=self.config.announce_period)
+        self.phase = "driving"
+        self._status("covering")
+        self._say("driving")
+        await self.runner.run()
+        self.phase = "done"
+        self._status("done")
+        self._event("completed", detail=f"{self.runner.moves} moves")
+        self._mission_status("complete", f"robot {self.robot} knows every sub-cell covered",
+                             robot=self.robot, moves=self.runner.moves)
+        self._say(f"completed after {self.runner.moves} moves")
+        await asyncio.sleep(self.config.linger)
+
+    # --- watchers -------------------------------------------------------------------------
+
+    async def _watch_fence(self) -> None:
+        await self.liveness.fenced.wait()
+        raise FencedError(f"robot {self.robot} incarnation {self.incarnation} was declared "
+                          "dead; stopping")
+
+    async def _watch_stop(self) -> None:
+        await self.stop.wait()
+        raise LeaveRequested()
+
+    async def _watch_mission(self) -> None:
+        while True:
+            await self.peers.verdict.wait()
+            mission = self.peers.mission
+            if mission is not None and mission.state == "failed":
+                raise MissionFailedError(f"mission failed: {mission.message}")
+            self.peers.verdict.clear()
+
+    async def _run_group(self) -> None:
+        async with asyncio.TaskGroup() as group:
+            background = [group.create_task(self.liveness.run()),
+                          group.create_task(self.announcer.run()),
+                          group.create_task(self._watch_fence()),
+                          group.create_task(self._watch_stop()),
+                          group.create_task(self._watch_mission())]
+            await self._mission()
+            for task in background:
+                task.cancel()
+
+    async def run(self, settings: ConnectionSettings) -> int:
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                loop.add_signal_handler(sig, self.stop.set)
+        async with Bus.connect(settings) as bus:
+            self._wire(bus)
+            try:
+                await self._run_group()
+            except BaseExceptionGroup as group:
+                return await self._ending(_main_error(group))
+            self.liveness.leave()
+            await asyncio.sleep(LEAVE_FLUSH_S)
+        return 0
+
+    async def _ending(self, error: BaseException) -> int:
+        """Tell the others how this life ends; return the exit code."""
+        self.error = str(error)
+        if isinstance(error, LeaveRequested):
+            self._status("left", "SIGTERM/SIGINT")
+            self._event("leaving", detail="asked to stop")
+            self.liveness.leave()
+            code = 0
+        elif isinstance(error, FencedError):
+            self._status("fenced", str(error))
+            self._event("fenced", detail=str(error))
+            code = error.exit_code
+        elif isinstance(error, AgentError):
+            if isinstance(error, MissionFailedError) and (
+                    self.peers.mission is None or self.peers.mission.state != "failed"):
+                self._mission_status("failed", str(error))
+            self._status("stopped", str(error))
+            self._event("stopped", detail=str(error))
+            self.liveness.leave()
+            code = error.exit_code
+        else:
+            raise error
+        await asyncio.sleep(LEAVE_FLUSH_S)
+        return code
+
+
+def _main_error(group: BaseExceptionGroup[BaseException]) -> BaseException:
+    """The exception that decides how the process ends (fencing first, then leaving)."""
+    flat: list[BaseException] = []
+
+    def collect(exc: BaseException) -> None:
+        if isinstance(exc, BaseExceptionGroup):
+            for inner in exc.exceptions:
+                collect(inner)
+        else:
+            flat.append(exc)
+
+    collect(group)
+    for kind in (FencedError, LeaveRequested, AgentError, PlannerError):
+        for exc in flat:
+            if isinstance(exc, kind):
+                return exc
+    return flat[0]

@@ -1,0 +1,261 @@
+"""Fleet benchmarks (figures for docs/operations.md; not a test, nothing is asserted).
+
+    .venv/bin/python benchmarks/bench_fleet.py latency [--fleets 4 --robots 6]
+    .venv/bin/python benchmarks/bench_fleet.py startup [--robots 10]     # also RSS per process
+    .venv/bin/python benchmarks/bench_fleet.py big [--robots 30 --time-scale 0]
+    .venv/bin/python benchmarks/bench_fleet.py all
+
+latency: SIGKILL agents one at a time in running fleets (``mstc up`` at time scale 1 so the
+mission outlasts the kills) and time, from the kill, the deletion of the robot's liveliness
+token and the first DeathNotice a peer publishes; it also counts death notices about robots
+that were never killed (false suspicions). startup: wall time from starting ``mstc up`` to
+every agent having announced itself, then the resident memory of each process. big: a full
+mission (default 30 robots on grid30x20, 2400 sub-cells) through ``mstc up``: wall time and
+the executed makespan over the planner's makespan.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from bus import keys
+from bus.bridge import Bus
+from bus.config import ConnectionSettings
+from bus.messages import DeathNotice, RobotStatus
+from deploy.fleet import FleetInfo, RunDir
+
+MAIN = "import sys; from deploy.cli import main; sys.exit(main())"
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+class UpProcess:
+    """A background ``mstc up`` whose stdout lines are collected by a thread."""
+
+    def __init__(self, run_dir: Path, *args: str) -> None:
+        self.run_dir = run_dir
+        self.port = free_port()
+        self.t0 = time.monotonic()
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", MAIN, "up", "--plain", "--listen",
+             f"tcp/127.0.0.1:{self.port}", "--run-dir", str(run_dir), *args],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.lines: list[tuple[float, str]] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self.lines.append((time.monotonic(), line.rstrip()))
+
+    def wait_line(self, text: str, timeout: float) -> float:
+        """Monotonic time the first line containing ``text`` was read."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for at, line in list(self.lines):
+                if text in line:
+                    return at
+            if self.proc.poll() is not None and not self._reader.is_alive():
+                break
+            time.sleep(0.02)
+        tail = "\n".join(line for _, line in self.lines[-15:])
+        raise RuntimeError(f"no line with {text!r} from mstc up:\n{tail}")
+
+    def fleet(self) -> FleetInfo:
+        deadline = time.monotonic() + 120
+        while not (self.run_dir / "fleet.json").exists():
+            if time.monotonic() > deadline or self.proc.poll() is not None:
+                raise RuntimeError("mstc up did not write fleet.json")
+            time.sleep(0.05)
+        return RunDir(self.run_dir).read_fleet()
+
+    def stop(self) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        code = self.proc.wait(120)
+        self._reader.join(5)
+        return code
+
+
+def _lease(args: argparse.Namespace) -> list[str]:
+    return [] if args.lease_ms is None else ["--lease-ms", str(args.lease_ms)]
+
+
+def rss_mb(pid: int) -> float | None:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        return None
+    return None
+
+
+def pct(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
+
+
+# --- latency --------------------------------------------------------------------------------
+
+async def _kill_series(info: FleetInfo, victims: list[int], gap: float, sig: int
+                       ) -> tuple[list[float], list[float], int]:
+    settings = ConnectionSettings(connect=(info.endpoint,), mission=info.mission)
+    deaths: dict[int, float] = {}
+    tokens_gone: dict[int, float] = {}
+    statuses: set[int] = set()
+    killed: set[int] = set()
+    false_suspicions = 0
+
+    def on_death(_key: str, notice: DeathNotice) -> None:
+        nonlocal false_suspicions
+        if notice.robot not in killed and notice.robot not in deaths:
+            false_suspicions += 1
+        deaths.setdefault(notice.robot, time.monotonic())
+
+    def on_token_gone(key: str) -> None:
+        parsed = keys.parse(key)
+        if parsed is not None and parsed.robot is not None:
+            tokens_gone.setdefault(parsed.robot, time.monotonic())
+
+    async with Bus.connect(settings) as bus:
+        bus.subscribe(keys.all_deaths(info.mission), DeathNotice, on_death)
+        bus.subscribe(keys.all_statuses(info.mission), RobotStatus,
+                      lambda _k, st: statuses.add(st.robot))
+        bus.watch_liveliness(keys.all_alive(info.mission), lambda _k: None, on_token_gone)
+        async with asyncio.timeout(120):
+            while len(statuses) < info.robots:
+                await asyncio.sleep(0.05)
+        await asyncio.sleep(1.0)  # let the agents reach their steady heartbeat
+        death_lat, token_lat = [], []
+        for robot in victims:
+            t_kill = time.monotonic()
+            killed.add(robot)
+            os.kill(info.agent(robot).pid, sig)
+            async with asyncio.timeout(15):
+                while robot not in deaths:
+                    await asyncio.sleep(0.005)
+            if sig != signal.SIGKILL:  # a hung (stopped) process: end it for good now
+                os.kill(info.agent(robot).pid, signal.SIGKILL)
+            death_lat.append(deaths[robot] - t_kill)
+            if robot in tokens_gone:
+                token_lat.append(tokens_gone[robot] - t_kill)
+            await asyncio.sleep(gap)
+    return death_lat, token_lat, false_suspicions
+
+
+def bench_latency(args: argparse.Namespace, root: Path) -> None:
+    deaths: list[float] = []
+    tokens: list[float] = []
+    false_total = 0
+    for fleet in range(args.fleets):
+        up = UpProcess(root / f"latency-{fleet}", "-n", str(args.robots), "--world", "office",
+                       "--time-scale", "1", *_lease(args),
+                       "--stall-timeout", "600", "--seed", str(fleet),
+                       *[f"--agent-arg={a}" for a in args.agent_arg])
+        try:
+            info = up.fleet()
+            sig = signal.SIGSTOP if args.hang else signal.SIGKILL
+            d, t, f = asyncio.run(_kill_series(info, list(range(1, args.robots)), args.gap,
+                                               sig))
+            deaths += d
+            tokens += t
+            false_total += f
+        finally:
+            up.stop()
+    what = "SIGSTOP" if args.hang else "SIGKILL"
+    print(f"{what} -> first DeathNotice from a peer, {len(deaths)} kills: "
+          f"median {1000 * statistics.median(deaths):.0f} ms, p95 {1000 * pct(deaths, .95):.0f} "
+          f"ms, max {1000 * max(deaths):.0f} ms")
+    if tokens:
+        print(f"{what} -> liveliness token deleted, {len(tokens)} kills: median "
+              f"{1000 * statistics.median(tokens):.1f} ms, p95 {1000 * pct(tokens, .95):.1f} ms")
+    print(f"death notices about robots never killed (false suspicions): {false_total}")
+
+
+# --- start-up and memory --------------------------------------------------------------------
+
+def bench_startup(args: argparse.Namespace, root: Path) -> None:
+    up = UpProcess(root / "startup", "-n", str(args.robots), "--world", "office",
+                   "--time-scale", "1", "--stall-timeout", "600")
+    try:
+        ready = up.wait_line("mission started", 180)
+        print(f"{args.robots} robots: mstc up start -> every agent announced: "
+              f"{ready - up.t0:.1f} s wall")
+        time.sleep(2.0)
+        info = up.fleet()
+        by_role: dict[str, list[float]] = {}
+        for proc in info.processes:
+            mb = rss_mb(proc.pid)
+            if mb is not None:
+                by_role.setdefault(proc.role, []).append(mb)
+        for role, values in sorted(by_role.items()):
+            print(f"RSS {role:6s}: median {statistics.median(values):.0f} MB, "
+                  f"max {max(values):.0f} MB ({len(values)} processes)")
+    finally:
+        up.stop()
+
+
+# --- the big mission ------------------------------------------------------------------------
+
+def bench_big(args: argparse.Namespace, root: Path) -> None:
+    run_dir = root / "big"
+    up = UpProcess(run_dir, "-n", str(args.robots), "--world", args.world, "--algo", "opt",
+                   "--time-scale", str(args.time_scale), "--stall-timeout", "120",
+                   "--start-timeout", "300", *_lease(args),
+                   *[f"--agent-arg={a}" for a in args.agent_arg])
+    code = up.proc.wait(1800)
+    up.stop()
+    summary = json.loads((run_dir / "summary.json").read_text())
+    print("\n".join(line for _, line in up.lines[-8:]))
+    print(f"{args.robots} robots on {args.world} at time scale {args.time_scale:g}: exit {code}, "
+          f"wall {time.monotonic() - up.t0:.1f} s, coverage {summary['coverage']:.1f} %, "
+          f"executed makespan {summary['makespan_moves']} / planned "
+          f"{summary['planned_makespan']} = "
+          f"{summary['makespan_moves'] / summary['planned_makespan']:.3f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("what", choices=("latency", "startup", "big", "all"))
+    parser.add_argument("--robots", type=int, default=None)
+    parser.add_argument("--fleets", type=int, default=4)
+    parser.add_argument("--hang", action="store_true",
+                        help="latency: SIGSTOP (a hung robot) instead of SIGKILL")
+    parser.add_argument("--gap", type=float, default=1.0, help="seconds between kills")
+    parser.add_argument("--world", default="grid30x20")
+    parser.add_argument("--lease-ms", type=int, default=None,
+                        help="transport lease of every process (default: mstc up's)")
+    parser.add_argument("--time-scale", type=float, default=0.0)
+    parser.add_argument("--agent-arg", action="append", default=[],
+                        help="extra agent option, e.g. --agent-arg=--dead-after=0.5")
+    args = parser.parse_args()
+    defaults = {"latency": 6, "startup": 10, "big": 30}
+    with tempfile.TemporaryDirectory(prefix="bench_fleet_") as tmp:
+        for what in (("latency", "startup", "big") if args.what == "all" else (args.what,)):
+            sub = argparse.Namespace(**vars(args))
+            sub.robots = args.robots or defaults[what]
+            {"latency": bench_latency, "startup": bench_startup, "big": bench_big}[what](
+                sub, Path(tmp))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,320 @@
+"""Process management for a local fleet: run directory, child processes, PID files, shutdown.
+
+Children are started with ``subprocess`` (never a fork of a process that imported zenoh) as
+``python -m deploy.cli <command>``, each in its own session so that a Ctrl-C in the terminal
+reaches only the launcher, which then stops them in order. A PID file holds the pid *and*
+the process start time from /proc, so that ``mstc down``/``mstc kill`` never signal an
+unrelated process that reused the pid after the fleet ended.
+
+Run directory layout::
+
+    <run>/fleet.json        FleetInfo: mission, endpoint, world, processes (read by down/kill)
+    <run>/summary.json      the end-of-mission summary (written by mstc up)
+    <run>/logs/<name>.log   stdout+stderr of each process (router, simhw, agent-<i>)
+    <run>/pids/<name>.pid   "<pid> <start-ticks>" of each process, up.pid for the launcher
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from deploy.cli import UsageError
+
+RUNS_ROOT = Path("runs")
+FLEET_FILE = "fleet.json"
+SUMMARY_FILE = "summary.json"
+LAUNCHER = "up"
+
+
+class FleetError(UsageError):
+    """A fleet could not be started, found or stopped; the message is one readable line."""
+
+
+@dataclass(frozen=True)
+class ProcessRecord:
+    """One process of a fleet as written to fleet.json."""
+
+    name: str
+    role: str  # "up", "router", "simhw" or "agent"
+    pid: int
+    started: int | None  # start time in clock ticks since boot (/proc/<pid>/stat field 22)
+    log: str = ""
+    robot: int | None = None
+
+
+@dataclass(frozen=True)
+class FleetInfo:
+    """What ``mstc kill`` and ``mstc down`` need to know about a running fleet."""
+
+    mission: str
+    endpoint: str
+    own_router: bool
+    world: str
+    algo: str
+    robots: int
+    starts: tuple[tuple[int, int], ...]
+    time_scale: float
+    created: float
+    processes: tuple[ProcessRecord, ...] = field(default_factory=tuple)
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> FleetInfo:
+        procs = tuple(ProcessRecord(**p) for p in data.get("processes", ()))
+        fields = {k: v for k, v in data.items() if k != "processes"}
+        fields["starts"] = tuple((int(r), int(c)) for r, c in fields.get("starts", ()))
+        return cls(**fields, processes=procs)
+
+    def agent(self, robot: int) -> ProcessRecord:
+        for proc in self.processes:
+            if proc.role == "agent" and proc.robot == robot:
+                return proc
+        raise FleetError(f"no agent for robot {robot} in this fleet (robots 0..{self.robots - 1})")
+
+
+class RunDir:
+    """The files of one fleet run."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+
+    @property
+    def logs(self) -> Path:
+        return self.path / "logs"
+
+    @property
+    def pids(self) -> Path:
+        return self.path / "pids"
+
+    def create(self) -> RunDir:
+        try:
+            self.logs.mkdir(parents=True, exist_ok=True)
+            self.pids.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise FleetError(f"cannot create run directory {self.path}: {error}") from error
+        return self
+
+    def log_path(self, name: str) -> Path:
+        return self.logs / f"{name}.log"
+
+    def write_pid(self, record: ProcessRecord) -> None:
+        (self.pids / f"{record.name}.pid").write_text(f"{record.pid} {record.started or 0}\n")
+
+    def remove_pid(self, name: str) -> None:
+        (self.pids / f"{name}.pid").unlink(missing_ok=True)
+
+    def write_fleet(self, info: FleetInfo) -> None:
+        _write_json_atomic(self.path / FLEET_FILE, info.to_json())
+
+    def read_fleet(self) -> FleetInfo:
+        path = self.path / FLEET_FILE
+        try:
+            return FleetInfo.from_json(json.loads(path.read_text()))
+        except FileNotFoundError:
+            raise FleetError(f"{path} does not exist: not a fleet run directory") from None
+        except (OSError, ValueError, TypeError, KeyError) as error:
+            raise FleetError(f"cannot read {path}: {error}") from error
+
+    def write_summary(self, data: dict[str, Any]) -> None:
+        _write_json_atomic(self.path / SUMMARY_FILE, data)
+
+
+def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    # Readers (mstc down in another terminal) must never see half a file.
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=2) + "\n")
+    tmp.replace(path)
+
+
+def unique_mission() -> str:
+    """A mission name no other fleet uses, so fleets sharing a router never mix."""
+    return f"fleet-{secrets.token_hex(3)}"
+
+
+def default_run_dir(mission: str, root: Path = RUNS_ROOT) -> Path:
+    return root / f"{time.strftime('%Y%m%d-%H%M%S')}-{mission}"
+
+
+def latest_run_dir(root: Path = RUNS_ROOT) -> Path:
+    """The run directory whose fleet.json is the newest under ``root``."""
+    candidates = list(root.glob(f"*/{FLEET_FILE}")) if root.is_dir() else []
+    if not candidates:
+        raise FleetError(f"no fleet run directory under {root}/ (give --run-dir)")
+    return max(candidates, key=lambda p: p.stat().st_mtime).parent
+
+
+# --- process identity -----------------------------------------------------------------------
+
+def _proc_stat(pid: int) -> list[str] | None:
+    """Fields 3.. of /proc/<pid>/stat (None where /proc is unavailable or pid is gone)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    # The command name (field 2) may hold spaces; fields after its closing paren are fixed.
+    return stat.rsplit(")", 1)[1].split()
+
+
+def start_ticks(pid: int) -> int | None:
+    """The process start time in clock ticks since boot (None if unknown)."""
+    fields = _proc_stat(pid)
+    return None if fields is None else int(fields[19])
+
+
+def is_running(record: ProcessRecord) -> bool:
+    """True if the recorded process is still the one running under its pid."""
+    fields = _proc_stat(record.pid)
+    if fields is not None:
+        if fields[0] == "Z":  # a zombie has ended; only its parent has not reaped it yet
+            return False
+        return record.started is None or int(fields[19]) == record.started
+    if Path("/proc").is_dir():
+        return False
+    try:
+        os.kill(record.pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def send_signal(record: ProcessRecord, sig: int) -> bool:
+    """Signal the recorded process if it is still that process; False if it is gone."""
+    if not is_running(record):
+        return False
+    try:
+        os.kill(record.pid, sig)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def wait_gone(records: list[ProcessRecord], timeout: float) -> list[ProcessRecord]:
+    """Wait until the processes end (or ``timeout``); return those still running."""
+    deadline = time.monotonic() + timeout
+    alive = [r for r in records if is_running(r)]
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.05)
+        alive = [r for r in alive if is_running(r)]
+    return alive
+
+
+# --- children -----------------------------------------------------------------------------
+
+class Child:
+    """A process started by the launcher, with its log file."""
+
+    def __init__(self, name: str, role: str, argv: list[str], log: Path,
+                 robot: int | None = None) -> None:
+        self.name = name
+        self.role = role
+        self.robot = robot
+        self.log = log
+        self.argv = argv
+        self.expected_exit = False  # set before we stop or kill it on purpose
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        with log.open("ab") as out:
+            self.proc = subprocess.Popen(
+                argv, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+                env=env, start_new_session=True)
+        self.record = ProcessRecord(name=name, role=role, pid=self.proc.pid,
+                                    started=start_ticks(self.proc.pid), log=str(log),
+                                    robot=robot)
+
+    @property
+    def returncode(self) -> int | None:
+        return self.proc.poll()
+
+    def signal(self, sig: int) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+
+    def tail(self, lines: int = 15) -> str:
+        return log_tail(self.log, lines)
+
+
+# Not "-m deploy.cli": that imports deploy.cli twice (as __main__ and as deploy.cli), so
+# exceptions defined there would escape the dispatcher's one-line error handling.
+_MAIN = "import sys; from deploy.cli import main; sys.exit(main())"
+
+
+def mstc_argv(command: str, *args: str) -> list[str]:
+    """The argv of an ``mstc <command>`` child run by this Python interpreter."""
+    return [sys.executable, "-c", _MAIN, command, *args]
+
+
+def log_tail(path: Path, lines: int = 15) -> str:
+    try:
+        text = path.read_text(errors="replace")
+    except OSError:
+        return ""
+    return "\n".join(text.rstrip().splitlines()[-lines:])
+
+
+def stop_children(children: list[Child], timeout: float = 5.0) -> None:
+    """SIGTERM every child still running, wait up to ``timeout``, then SIGKILL the rest."""
+    for child in children:
+        child.expected_exit = True
+        child.signal(signal.SIGTERM)
+    deadline = time.monotonic() + timeout
+    for child in children:
+        try:
+            child.proc.wait(max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            child.proc.kill()
+            child.proc.wait()
+
+
+# --- endpoints ----------------------------------------------------------------------------
+
+def tcp_address(endpoint: str) -> tuple[str, int] | None:
+    """(host, port) of a ``tcp/host:port`` endpoint, None for other protocols."""
+    proto, _, address = endpoint.partition("/")
+    if proto != "tcp":
+        return None
+    host, sep, port = address.rpartition(":")
+    if not sep or not port.isdigit():
+        raise FleetError(f"endpoint {endpoint!r} must look like tcp/127.0.0.1:7447")
+    return host.strip("[]"), int(port)
+
+
+def check_port_free(endpoint: str) -> None:
+    """FleetError at once if something already listens on ``endpoint`` (another fleet)."""
+    address = tcp_address(endpoint)
+    if address is None:
+        return
+    family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as sock:
+        # SO_REUSEADDR ignores TIME_WAIT leftovers but still fails on a live listener.
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind(address)
+        except OSError as error:
+            raise FleetError(
+                f"{endpoint} is already in use ({error.strerror}): another fleet or router "
+                f"is running there; stop it with 'mstc down' or choose --listen") from None
+
+
+def port_reachable(endpoint: str, timeout: float = 1.0) -> bool:
+    """True if a TCP connection to ``endpoint`` succeeds (a router is listening)."""
+    address = tcp_address(endpoint)
+    if address is None:
+        return True
+    try:
+        with socket.create_connection(address, timeout=timeout):
+            return True
+    except OSError:
+        return False

@@ -1,0 +1,383 @@
+"""The launcher behind ``mstc up``: starts the processes, supervises the mission, stops all.
+
+One asyncio loop and one TaskGroup (world poller + watcher). The bus session of the launcher
+is opened before simhw and the agents start, so no start-up message is missed; coverage is
+the simhw ground truth (live CoverEvents, and the WorldState query every POLL_S as the
+authority). Children are stopped agents first, then simhw, then the router, each with
+SIGTERM and a SIGKILL after a grace period, whatever ended the mission (also exceptions).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import os
+import signal
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from bus import keys
+from bus.bridge import BoundedFifo, Bus, LatestWins
+from bus.config import ConnectionSettings
+from bus.messages import (
+    AdminCommand,
+    AdminReply,
+    CoverEvent,
+    DeathNotice,
+    MissionStatus,
+    RobotEvent,
+    RobotStatus,
+    WorldState,
+)
+from bus.router import READY_MARK as ROUTER_READY
+from deploy.cmd_up import KillOrder, MissionSetup
+from deploy.fleet import (
+    LAUNCHER,
+    Child,
+    FleetError,
+    FleetInfo,
+    ProcessRecord,
+    RunDir,
+    log_tail,
+    mstc_argv,
+    start_ticks,
+    stop_children,
+)
+from deploy.progress import ProgressView, make_progress
+from deploy.summary import MissionTracker, format_summary, summarize
+
+SIMHW_READY = "simhw ready"
+POLL_S = 0.5
+TICK_S = 0.1
+STOP_GRACE_S = 5.0
+# Agent exit codes (agent/main.py): 0 done or left, 4 fenced; anything else is a failure.
+AGENT_DONE, AGENT_FENCED = 0, 4
+
+
+@dataclass(frozen=True)
+class Outcome:
+    code: int
+    message: str
+
+
+class Launcher:
+    """Starts, supervises and stops one fleet."""
+
+    def __init__(self, setup: MissionSetup, orders: list[KillOrder], endpoint: str,
+                 mission: str, run_dir: RunDir, args: argparse.Namespace,
+                 view: ProgressView) -> None:
+        self.setup = setup
+        self.orders = list(orders)
+        self.endpoint = endpoint
+        self.mission = mission
+        self.run_dir = run_dir
+        self.args = args
+        self.view = view
+        self.own_router = args.connect is None
+        self.router: Child | None = None
+        self.simhw: Child | None = None
+        self.agents: list[Child] = []
+        self.tracker = MissionTracker(setup.reachable, setup.k)
+        self.t0 = time.monotonic()
+        self.stop = asyncio.Event()
+        self.wake = asyncio.Event()  # set when a percent-triggered kill may be due
+        self.stop_signal: int | None = None
+        self.failed_verdict = ""
+        self.killed_at: dict[int, float] = {}  # robots failed by us, until a peer notices
+        self._reported: set[str] = set()
+        self._logged = 0
+
+    # --- processes -------------------------------------------------------------------------
+
+    def _connection(self) -> list[str]:
+        return ["--mode", "client", "--connect", self.endpoint, "--mission", self.mission,
+                "--lease-ms", str(self.args.lease_ms)]
+
+    def _spawn(self, name: str, role: str, argv: list[str], robot: int | None = None) -> Child:
+        child = Child(name, role, argv, self.run_dir.log_path(name), robot)
+        self.run_dir.write_pid(child.record)
+        return child
+
+    async def _wait_ready(self, child: Child, mark: str, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and not self.stop.is_set():
+            if mark in log_tail(child.log, 50):
+                return
+            if child.returncode is not None:
+                last = log_tail(child.log, 1) or f"exit code {child.returncode}"
+                raise FleetError(f"{child.name} failed to start: {last} (log: {child.log})")
+            await asyncio.sleep(0.05)
+        if not self.stop.is_set():
+            raise FleetError(f"{child.name} not ready after {timeout:.0f} s (log: {child.log})")
+
+    async def start_router(self) -> None:
+        if self.own_router:
+            self.router = self._spawn("router", "router", mstc_argv(
+                "router", "--listen", self.endpoint, "--lease-ms", str(self.args.lease_ms)))
+            await self._wait_ready(self.router, ROUTER_READY, 20.0)
+
+    async def start_fleet(self) -> None:
+        s = self.setup
+        starts = ";".join(f"{r},{c}" for r, c in s.starts)
+        world = ["--world", s.world] + ([] if s.cell_size is None else
+                                        ["--cell-size", str(s.cell_size)])
+        self.simhw = self._spawn("simhw", "simhw", mstc_argv(
+            "simhw", *world, "--robots", starts, "--seed", str(s.seed),
+            "--time-scale", str(s.time_scale), *self._connection(), *self.args.simhw_arg))
+        await self._wait_ready(self.simhw, SIMHW_READY, 30.0)
+        if self.stop.is_set():
+            return
+        for robot in range(s.k):
+            self.agents.append(self._spawn(f"agent-{robot}", "agent", mstc_argv(
+                "agent", "--id", str(robot), "--algo", s.algo, *world, "--tree", s.tree,
+                "--seed", str(s.seed), "--robots", str(s.k), "--dead-after",
+                str(self.args.dead_after), *self._connection(), *self.args.agent_arg), robot))
+        self.write_fleet()
+        self.view.event(f"fleet up: mission {self.mission}, {s.k} agents, world {s.world}, "
+                        f"algo {s.algo}, run dir {self.run_dir.path}")
+
+    def children(self) -> list[Child]:
+        return [c for c in (self.router, self.simhw, *self.agents) if c is not None]
+
+    def write_fleet(self) -> None:
+        s = self.setup
+        me = ProcessRecord(name=LAUNCHER, role=LAUNCHER, pid=os.getpid(),
+                           started=start_ticks(os.getpid()))
+        self.run_dir.write_pid(me)
+        self.run_dir.write_fleet(FleetInfo(
+            mission=self.mission, endpoint=self.endpoint, own_router=self.own_router,
+            world=s.world, algo=s.algo, robots=s.k, starts=s.starts,
+            time_scale=s.time_scale, created=time.time(),
+            processes=(me, *(c.record for c in self.children()))))
+
+    def shutdown(self) -> None:
+        """Stop every child in order: agents, simhw, router (SIGTERM, then SIGKILL)."""
+        for group in (self.agents, [self.simhw], [self.router]):
+            stop_children([c for c in group if c is not None], STOP_GRACE_S)
+        for child in self.children():
+            self.run_dir.remove_pid(child.name)
+        self.run_dir.remove_pid(LAUNCHER)
+
+    # --- bus -------------------------------------------------------------------------------
+
+    def subscribe(self, bus: Bus) -> None:
+        m, t = self.mission, self.tracker
+        bus.subscribe(keys.all_sim_covers(m), CoverEvent,
+                      lambda _k, ev: self._on_cover(ev), BoundedFifo(65536))
+        bus.subscribe(keys.all_statuses(m), RobotStatus, lambda _k, st: t.on_status(st),
+                      LatestWins())
+        bus.subscribe(keys.all_events(m), RobotEvent, lambda _k, ev: t.on_event(ev))
+        bus.subscribe(keys.all_deaths(m), DeathNotice, self._on_death)
+        bus.subscribe(keys.mission_status(m), MissionStatus, self._on_verdict)
+
+    def _on_cover(self, event: CoverEvent) -> None:
+        # At time scale 0 a mission lasts about a second: check percent kills per cover, not
+        # per tick, so that "2@progress=40" lands near 40 %.
+        if self.tracker.on_cover(event, time.monotonic()) and any(
+                o.percent is not None and self.tracker.coverage >= o.percent
+                for o in self.orders):
+            self.wake.set()
+
+    def _on_death(self, _key: str, notice: DeathNotice) -> None:
+        self.tracker.on_death(notice)
+        killed_at = self.killed_at.pop(notice.robot, None)
+        if killed_at is not None and notice.reason != "leaving":
+            by = "?" if notice.detected_by is None else notice.detected_by
+            self.tracker.log.append(
+                f"robot {notice.robot} declared dead by robot {by} ({notice.reason}) "
+                f"{time.monotonic() - killed_at:.2f} s after it was failed")
+
+    def _on_verdict(self, _key: str, status: MissionStatus) -> None:
+        if status.state == "failed" and not self.failed_verdict:
+            self.failed_verdict = status.message or "no reason given"
+
+    async def poll_world(self, bus: Bus) -> None:
+        while True:
+            await self.query_world(bus)
+            await asyncio.sleep(POLL_S)
+
+    async def query_world(self, bus: Bus) -> None:
+        for reply in await bus.query(keys.world(self.mission), None, WorldState, timeout=2.0):
+            try:
+                self.tracker.on_world(reply.msg, time.monotonic())
+            except ValueError as error:
+                raise FleetError(f"simhw's world does not match: {error}") from error
+
+    # --- supervision -----------------------------------------------------------------------
+
+    async def supervise(self, bus: Bus) -> Outcome:
+        async with asyncio.TaskGroup() as group:
+            poller = group.create_task(self.poll_world(bus))
+            try:
+                return await self.watch(bus)
+            finally:
+                poller.cancel()
+
+    async def watch(self, bus: Bus) -> Outcome:
+        t, args = self.tracker, self.args
+        start_timeout = args.start_timeout or 30.0 + self.setup.k
+        started: float | None = None
+        complete_at: float | None = None
+        initial = t.covered
+        while True:
+            now = time.monotonic()
+            outcome = self._check_children()
+            if self.stop.is_set():
+                name = signal.Signals(self.stop_signal or signal.SIGINT).name
+                return Outcome(128 + (self.stop_signal or signal.SIGINT), f"stopped by {name}")
+            if outcome is None and self.failed_verdict:
+                outcome = Outcome(1, f"an agent declared the mission failed: "
+                                     f"{self.failed_verdict}")
+            if outcome is not None:
+                return outcome
+            if started is None and (t.announced == t.robots or t.covered > initial):
+                started = now
+                t.last_progress = now
+                t.sim_start = 0.0 if self.setup.time_scale == 0 else None
+                self.view.event(f"[{now - self.t0:6.1f}s] mission started: all robots up")
+            elif started is None and now - self.t0 > start_timeout:
+                missing = sorted(set(range(t.robots)) - t.heard)
+                return Outcome(1, f"agents not up after {start_timeout:.0f} s; robots not "
+                                  f"announced: {missing} (see their logs in "
+                                  f"{self.run_dir.logs})")
+            if started is not None:
+                await self._run_kills(bus, now - started)
+            if t.complete:
+                if complete_at is None:
+                    complete_at = now
+                    self.view.event(f"[{now - self.t0:6.1f}s] every reachable sub-cell covered")
+                if self._all_settled() or now - complete_at > args.linger:
+                    return Outcome(0, "every reachable free sub-cell was covered")
+            elif all(c.returncode is not None for c in self.agents):
+                return Outcome(1, "every agent has stopped; " + self._uncovered())
+            elif started is not None and now - t.last_progress > args.stall_timeout:
+                return Outcome(1, self._stall_diagnosis(now - t.last_progress))
+            self._flush_log()
+            self.view.update(t, now - self.t0)
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(TICK_S):
+                    await self.wake.wait()
+            self.wake.clear()
+
+    def _all_settled(self) -> bool:
+        return all(v.completed or v.lost or self.agents[v.robot].returncode is not None
+                   for v in self.tracker.views)
+
+    def _uncovered(self) -> str:
+        t = self.tracker
+        return (f"{t.total - t.covered} reachable sub-cells uncovered "
+                f"(e.g. {t.uncovered()})")
+
+    def _stall_diagnosis(self, quiet: float) -> str:
+        t = self.tracker
+        states = ", ".join(f"{v.robot}:{'lost' if v.lost else v.state}" for v in t.views)
+        return (f"mission stalled: no new sub-cell covered for {quiet:.0f} s; "
+                f"{self._uncovered()}; robot states {states}; "
+                f"agent logs in {self.run_dir.logs}")
+
+    def _check_children(self) -> Outcome | None:
+        for child in self.children():
+            code = child.returncode
+            if code is None or child.name in self._reported or child.expected_exit:
+                continue
+            self._reported.add(child.name)
+            if child.role != "agent":
+                return Outcome(1, f"{child.name} exited early with code {code}; last lines "
+                                  f"of {child.log}:\n{child.tail()}")
+            assert child.robot is not None
+            if code == AGENT_DONE:
+                self.tracker.views[child.robot].state = "exited"
+                continue
+            why = (f"agent process killed by signal {-code}" if code < 0 else
+                   "fenced: declared dead by its peers" if code == AGENT_FENCED else
+                   f"agent exited with code {code}")
+            known = bool(self.tracker.views[child.robot].lost)  # e.g. we failed its body
+            self.tracker.lose(child.robot, why)
+            if code > 0 and code != AGENT_FENCED and not known:
+                self.view.event(f"last lines of {child.log}:\n{child.tail(8)}")
+        return None
+
+    async def _run_kills(self, bus: Bus, elapsed: float) -> None:
+        for order in list(self.orders):
+            due = (order.seconds is not None and elapsed >= order.seconds) or (
+                order.percent is not None and self.tracker.coverage >= order.percent)
+            if not due:
+                continue
+            self.orders.remove(order)
+            self.killed_at[order.robot] = time.monotonic()
+            if order.hw:
+                await self._fail_body(bus, order.robot)
+            else:
+                child = self.agents[order.robot]
+                child.expected_exit = True
+                child.signal(signal.SIGKILL)
+                self.tracker.lose(order.robot, "killed by mstc up (SIGKILL)")
+            self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] {order.describe()}: done "
+                            f"(coverage {self.tracker.coverage:.1f} %)")
+
+    async def _fail_body(self, bus: Bus, robot: int) -> None:
+        replies = await bus.query(keys.hw_admin(self.mission), AdminCommand("fail", robot),
+                                  AdminReply, timeout=2.0)
+        if not replies or not replies[0].msg.ok:
+            why = replies[0].msg.message if replies else "no answer from simhw"
+            self.view.event(f"cannot fail robot {robot}'s body: {why}")
+            return
+        self.tracker.lose(robot, "body failed by mstc up")
+
+    def _flush_log(self) -> None:
+        for line in self.tracker.log[self._logged:]:
+            self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] {line}")
+        self._logged = len(self.tracker.log)
+
+
+def _install_signals(launcher: Launcher) -> list[int]:
+    loop = asyncio.get_running_loop()
+    handled: list[int] = []
+
+    def on_signal(sig: int) -> None:
+        launcher.stop_signal = sig
+        launcher.stop.set()
+        launcher.wake.set()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):
+            loop.add_signal_handler(sig, on_signal, sig)
+            handled.append(sig)
+    return handled
+
+
+async def launch(setup: MissionSetup, orders: list[KillOrder], endpoint: str, mission: str,
+                 run_dir: Path, args: argparse.Namespace, t0: float) -> int:
+    """Run the whole fleet; return the exit code (see deploy.cmd_up)."""
+    rd = RunDir(run_dir).create()
+    view = make_progress(args.plain)
+    launcher = Launcher(setup, orders, endpoint, mission, rd, args, view)
+    launcher.t0 = t0
+    handled = _install_signals(launcher)
+    settings = ConnectionSettings(connect=(endpoint,), mission=mission,
+                                  lease_ms=args.lease_ms)
+    try:
+        await launcher.start_router()
+        async with Bus.connect(settings) as bus:
+            launcher.subscribe(bus)
+            await launcher.start_fleet()
+            outcome = await launcher.supervise(bus) if not launcher.stop.is_set() else \
+                Outcome(128 + (launcher.stop_signal or 2), "stopped during start-up")
+            await launcher.query_world(bus)
+        summary = summarize(launcher.tracker, mission=mission, world=setup.world,
+                            algo=setup.algo, wall_seconds=time.monotonic() - t0,
+                            planned_makespan=setup.planned_makespan, outcome=outcome.message)
+        view.close()
+        print(format_summary(summary), flush=True)
+        rd.write_summary(summary.to_json())
+        if outcome.code == 0 and not summary.complete:
+            return 1
+        return outcome.code
+    finally:
+        view.close()
+        launcher.shutdown()
+        loop = asyncio.get_running_loop()
+        for sig in handled:
+            loop.remove_signal_handler(sig)

@@ -1,0 +1,249 @@
+"""What a mission achieved: a tracker fed by bus messages and process exits, and its summary.
+
+Ground truth comes from simhw (CoverEvents live, the WorldState query as the authority: a
+publication can be dropped, a query answer cannot be partly lost); the agents' statuses,
+events and death notices say who finished, who died and who took over. Nothing here does
+I/O or reads a clock: times are passed in, so the tracker is tested with plain values.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bus.messages import (
+    CoverEvent,
+    DeathNotice,
+    RobotEvent,
+    RobotStatus,
+    WorldState,
+    world_free,
+    world_visits,
+)
+from planner.grid import coarsen, expand, label_components
+from planner.types import BoolArray, OccupancyGrid, SubCell
+
+
+def reachable_sub_cells(grid: OccupancyGrid, starts: tuple[SubCell, ...]) -> BoolArray:
+    """Sub-cells of the free cells connected to some robot's start: what STC can cover.
+
+    A sub-cell of a partly blocked cell is not reachable (a cell is free only if all four
+    of its sub-cells are), and neither is a component no robot starts in.
+    """
+    coarse = coarsen(grid)
+    labels, _ = label_components(coarse.free)
+    h, w = labels.shape
+    wanted = {int(labels[r // 2, c // 2]) for r, c in starts if r // 2 < h and c // 2 < w}
+    wanted.discard(0)
+    cells = np.isin(labels, sorted(wanted))
+    out = np.zeros(grid.shape, dtype=bool)
+    mask = expand(cells)
+    out[: mask.shape[0], : mask.shape[1]] = mask
+    return out
+
+
+@dataclass
+class RobotView:
+    """What the launcher knows about one robot."""
+
+    robot: int
+    state: str = "starting"
+    moves: int = 0
+    lost: str = ""  # why the robot is lost; empty while it is not
+    completed: bool = False
+
+
+@dataclass(frozen=True)
+class MissionSummary:
+    mission: str
+    world: str
+    algo: str
+    robots: int
+    reachable: int
+    covered: int
+    complete: bool
+    makespan_moves: int
+    total_moves: int
+    revisited: int
+    sim_seconds: float
+    wall_seconds: float
+    robots_lost: tuple[tuple[int, str], ...]
+    takeovers: int
+    planned_makespan: int | None
+    outcome: str
+
+    @property
+    def coverage(self) -> float:
+        return 100.0 * self.covered / self.reachable if self.reachable else 100.0
+
+    def to_json(self) -> dict[str, Any]:
+        data = asdict(self)
+        data["coverage"] = self.coverage
+        data["robots_lost"] = [{"robot": r, "why": why} for r, why in self.robots_lost]
+        return data
+
+    def wire(self) -> dict[str, int | float | str]:
+        """A flat summary for MissionStatus.summary."""
+        return {"coverage": round(self.coverage, 3), "covered": self.covered,
+                "reachable": self.reachable, "makespan_moves": self.makespan_moves,
+                "sim_seconds": round(self.sim_seconds, 3), "robots_lost": len(self.robots_lost),
+                "takeovers": self.takeovers}
+
+
+@dataclass
+class MissionTracker:
+    """Coverage and robot states of one mission, updated from messages."""
+
+    reachable: BoolArray
+    robots: int
+    visits: np.ndarray = field(init=False)
+    views: list[RobotView] = field(init=False)
+    last_progress: float = 0.0
+    sim_start: float | None = None
+    sim_last: float = 0.0
+    takeovers: set[tuple[int, int | None]] = field(default_factory=set)
+    heard: set[int] = field(default_factory=set)  # robots whose status was received
+    log: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.visits = np.zeros(self.reachable.shape, dtype=np.int64)
+        self.views = [RobotView(r) for r in range(self.robots)]
+
+    # --- coverage ------------------------------------------------------------------------
+
+    @property
+    def total(self) -> int:
+        return int(self.reachable.sum())
+
+    @property
+    def covered(self) -> int:
+        return int(((self.visits > 0) & self.reachable).sum())
+
+    @property
+    def coverage(self) -> float:
+        return 100.0 * self.covered / self.total if self.total else 100.0
+
+    @property
+    def complete(self) -> bool:
+        return self.covered == self.total
+
+    def uncovered(self, limit: int = 5) -> list[SubCell]:
+        cells = np.argwhere(self.reachable & (self.visits == 0))[:limit]
+        return [(int(r), int(c)) for r, c in cells]
+
+    def on_cover(self, event: CoverEvent, now: float) -> bool:
+        """Record a cover; True if it covered a new reachable sub-cell."""
+        r, c = event.cell
+        if not (0 <= r < self.visits.shape[0] and 0 <= c < self.visits.shape[1]):
+            return False
+        new = self.visits[r, c] == 0 and bool(self.reachable[r, c])
+        self.visits[r, c] = max(int(self.visits[r, c]), event.visits)
+        self.sim_last = max(self.sim_last, event.sim_time)
+        if new:
+            self.last_progress = now
+        return bool(new)
+
+    def on_world(self, state: WorldState, now: float) -> bool:
+        """Merge a WorldState answer (the authority); True if coverage grew."""
+        if state.shape != self.visits.shape:
+            raise ValueError(f"world is {state.shape}, expected {self.visits.shape}")
+        if not np.array_equal(world_free(state) | ~self.reachable, np.ones_like(self.reachable)):
+            raise ValueError("world's free mask disagrees with the map the launcher loaded")
+        before = self.covered
+        self.visits = np.maximum(self.visits, world_visits(state).astype(np.int64))
+        for truth in state.robots:
+            if 0 <= truth.robot < self.robots:
+                view = self.views[truth.robot]
+                view.moves = max(0, truth.covered - 1)
+                if truth.failed and not view.lost:
+                    self.lose(truth.robot, "body failed in simhw")
+        if self.sim_start is None:
+            self.sim_start = state.sim_time
+        grew = self.covered > before
+        if grew:
+            self.last_progress = now
+        return grew
+
+    # --- robots --------------------------------------------------------------------------
+
+    def lose(self, robot: int, why: str) -> None:
+        view = self.views[robot]
+        if not view.lost:
+            view.lost = why
+            view.state = "lost"
+            self.log.append(f"robot {robot} lost: {why}")
+
+    def on_status(self, status: RobotStatus) -> None:
+        if not 0 <= status.robot < self.robots:
+            return
+        self.heard.add(status.robot)
+        if not self.views[status.robot].lost:
+            self.views[status.robot].state = status.state
+
+    def on_event(self, event: RobotEvent) -> None:
+        if not 0 <= event.robot < self.robots:
+            return
+        view = self.views[event.robot]
+        if event.kind == "completed":
+            view.completed = True
+        elif event.kind == "completion_withdrawn":
+            view.completed = False
+        elif event.kind == "takeover_started" and (pair := (event.robot, event.subject)) \
+                not in self.takeovers:
+            self.takeovers.add(pair)
+            self.log.append(f"robot {event.robot} takes over robot {event.subject}'s section")
+        if event.kind in ("fenced", "stopped", "leaving"):
+            view.state = event.kind
+
+    def on_death(self, notice: DeathNotice) -> None:
+        if not 0 <= notice.robot < self.robots:
+            return
+        if notice.reason == "leaving":
+            # A robot announcing its own clean exit (after completion or SIGTERM): not lost.
+            if not self.views[notice.robot].lost:
+                self.views[notice.robot].state = "left"
+            return
+        by = "an observer" if notice.detected_by is None else f"robot {notice.detected_by}"
+        self.lose(notice.robot, f"declared dead by {by} ({notice.reason})")
+
+    @property
+    def announced(self) -> int:
+        return len(self.heard)
+
+    @property
+    def alive(self) -> int:
+        return sum(not v.lost for v in self.views)
+
+
+def summarize(tracker: MissionTracker, *, mission: str, world: str, algo: str,
+              wall_seconds: float, planned_makespan: int | None, outcome: str) -> MissionSummary:
+    views = tracker.views
+    moves = [v.moves for v in views]
+    sim_start = tracker.sim_start or 0.0
+    return MissionSummary(
+        mission=mission, world=world, algo=algo, robots=tracker.robots,
+        reachable=tracker.total, covered=tracker.covered, complete=tracker.complete,
+        makespan_moves=max(moves, default=0), total_moves=sum(moves),
+        revisited=int(((tracker.visits > 1) & tracker.reachable).sum()),
+        sim_seconds=max(0.0, tracker.sim_last - sim_start), wall_seconds=wall_seconds,
+        robots_lost=tuple((v.robot, v.lost) for v in views if v.lost),
+        takeovers=len(tracker.takeovers), planned_makespan=planned_makespan, outcome=outcome)
+
+
+def format_summary(s: MissionSummary) -> str:
+    """The end-of-mission text block."""
+    lost = ", ".join(f"{r} ({why})" for r, why in s.robots_lost) or "none"
+    plan = "" if s.planned_makespan is None else f" (planned {s.planned_makespan})"
+    verdict = "COMPLETE" if s.complete else "INCOMPLETE"
+    return "\n".join([
+        f"mission {s.mission}: {verdict} — {s.outcome}",
+        f"  world {s.world}, algo {s.algo}, {s.robots} robots",
+        f"  coverage    {s.coverage:.1f} % ({s.covered} / {s.reachable} reachable sub-cells)",
+        f"  makespan    {s.makespan_moves} moves{plan}, {s.sim_seconds:.1f} simulated s "
+        f"({s.total_moves} moves in all, {s.revisited} sub-cells revisited)",
+        f"  robots lost {len(s.robots_lost)}: {lost}",
+        f"  takeovers   {s.takeovers}",
+        f"  wall time   {s.wall_seconds:.1f} s",
+    ])

@@ -1,0 +1,326 @@
+"""Launcher pieces without Zenoh: kill orders, coverage tracking, run dirs, PID identity,
+``mstc kill``/``mstc down`` on stand-in processes, the plain progress view."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bus.messages import (
+    CoverEvent,
+    DeathNotice,
+    RobotEvent,
+    RobotStatus,
+    RobotTruth,
+    make_world_state,
+)
+from deploy import cmd_down, cmd_kill
+from deploy.cmd_up import KillOrder, liveness_defaults, parse_kill, stall_timeout
+from deploy.fleet import (
+    FleetError,
+    FleetInfo,
+    ProcessRecord,
+    RunDir,
+    check_port_free,
+    is_running,
+    latest_run_dir,
+    start_ticks,
+)
+from deploy.progress import PlainProgress
+from deploy.summary import MissionTracker, format_summary, reachable_sub_cells, summarize
+from planner.types import OccupancyGrid
+
+# --- kill orders ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("text", "order"), [
+    ("2@3", KillOrder(2, seconds=3.0)),
+    ("0@1.5s", KillOrder(0, seconds=1.5)),
+    ("4@progress=40", KillOrder(4, percent=40.0)),
+    ("1@25%", KillOrder(1, percent=25.0)),
+])
+def test_parse_kill_accepts_seconds_and_percent(text: str, order: KillOrder) -> None:
+    assert parse_kill(text) == order
+    assert parse_kill(text, hw=True).hw
+
+
+@pytest.mark.parametrize("text", ["2", "@3", "x@3", "2@", "2@-1", "2@progress=140", "2@3m"])
+def test_parse_kill_rejects_malformed(text: str) -> None:
+    with pytest.raises(argparse.ArgumentTypeError):
+        parse_kill(text)
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    (["--world", "no-such-world"], "neither a builtin world nor an existing map file"),
+    (["--kill", "5@1"], "robots are 0..1"),
+    (["--starts", "0,0"], "--starts gives 1 robots"),
+    (["--starts", "0,0;0,0"], "robots 0 and 1 both start"),
+])
+def test_up_rejects_mistakes_in_one_line_before_starting(tmp_path: Path, extra: list[str],
+                                                        message: str) -> None:
+    main = "import sys; from deploy.cli import main; sys.exit(main())"
+    result = subprocess.run(
+        [sys.executable, "-c", main, "up", "-n", "2", "--world", "open-room",
+         "--run-dir", str(tmp_path / "run"), *extra],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "run").exists()
+
+
+def test_default_stall_timeout_allows_100_moves_of_wall_time() -> None:
+    def timeout(scale: float, given: float | None = None) -> float:
+        return stall_timeout(argparse.Namespace(time_scale=scale, stall_timeout=given))
+
+    assert timeout(0.0) == timeout(float("inf")) == 20.0
+    assert timeout(1.0) == pytest.approx(20.0 + 100 * 2.5)
+    assert timeout(40.0) < timeout(10.0)
+    assert timeout(1.0, given=7.0) == 7.0
+
+
+def test_crowded_fleets_get_long_liveness_timers_unless_told() -> None:
+    def settings(robots: int, cores: int, **given: float) -> tuple[float, float]:
+        args = argparse.Namespace(**{"robots": robots, "lease_ms": None, "dead_after": None,
+                                     **given})
+        liveness_defaults(args, cores)
+        return args.lease_ms, args.dead_after
+
+    assert settings(12, 2) == (1000, 3.0)
+    assert settings(13, 2) == (5000, 5.0)
+    assert settings(30, 8) == (1000, 3.0)
+    assert settings(30, 2, lease_ms=800, dead_after=2.0) == (800, 2.0)
+
+
+# --- reachable sub-cells: brute-force oracle ------------------------------------------------
+
+def reachable_oracle(free: np.ndarray, starts: list[tuple[int, int]]) -> np.ndarray:
+    """BFS over 2x2 blocks whose four sub-cells are all free, from each start's block."""
+    h, w = free.shape
+    block_free = {(r, c) for r in range(h // 2) for c in range(w // 2)
+                  if free[2 * r:2 * r + 2, 2 * c:2 * c + 2].all()}
+    seen: set[tuple[int, int]] = set()
+    queue = deque((r // 2, c // 2) for r, c in starts if (r // 2, c // 2) in block_free)
+    seen.update(queue)
+    while queue:
+        r, c = queue.popleft()
+        for nb in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
+            if nb in block_free and nb not in seen:
+                seen.add(nb)
+                queue.append(nb)
+    out = np.zeros_like(free)
+    for r, c in seen:
+        out[2 * r:2 * r + 2, 2 * c:2 * c + 2] = True
+    return out
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(3, 12), st.integers(3, 12), st.integers(0, 2**31), st.integers(1, 3))
+def test_reachable_matches_bfs(h: int, w: int, seed: int, k: int) -> None:
+    rng = np.random.default_rng(seed)
+    free = rng.random((h, w)) > 0.2
+    grid = OccupancyGrid(free, name="t")
+    candidates = np.argwhere(free)
+    if len(candidates) == 0:
+        return
+    starts = [tuple(int(v) for v in candidates[i])
+              for i in rng.choice(len(candidates), size=min(k, len(candidates)), replace=False)]
+    got = reachable_sub_cells(grid, tuple(starts))  # type: ignore[arg-type]
+    assert np.array_equal(got, reachable_oracle(free, starts))  # type: ignore[arg-type]
+
+
+# --- mission tracker ------------------------------------------------------------------------
+
+def _open_grid(h: int = 6, w: int = 8) -> OccupancyGrid:
+    return OccupancyGrid(np.ones((h, w), dtype=bool), name="open")
+
+
+def test_tracker_counts_distinct_reachable_covers_and_completes() -> None:
+    grid = _open_grid()
+    tracker = MissionTracker(reachable_sub_cells(grid, ((0, 0),)), robots=2)
+    rng = np.random.default_rng(3)
+    seen: set[tuple[int, int]] = set()
+    visits: dict[tuple[int, int], int] = {}
+    for step in range(200):
+        cell = (int(rng.integers(0, 6)), int(rng.integers(0, 8)))
+        visits[cell] = visits.get(cell, 0) + 1
+        new = tracker.on_cover(CoverEvent(step % 2, cell, float(step), visits[cell]), step)
+        assert new == (cell not in seen)
+        seen.add(cell)
+        assert tracker.covered == len(seen)
+    assert tracker.complete == (len(seen) == 48)
+    for r in range(6):
+        for c in range(8):
+            tracker.on_cover(CoverEvent(0, (r, c), 500.0, 1), 500.0)
+    assert tracker.complete and tracker.coverage == 100.0 and tracker.uncovered() == []
+
+
+def test_tracker_ignores_unreachable_and_out_of_map_covers() -> None:
+    free = np.ones((4, 8), dtype=bool)
+    free[:, 4] = False  # splits the map: cells in columns 4..7 are another component
+    tracker = MissionTracker(reachable_sub_cells(OccupancyGrid(free), ((0, 0),)), robots=1)
+    assert tracker.total == 16
+    assert not tracker.on_cover(CoverEvent(0, (0, 6), 1.0, 1), 1.0)
+    assert not tracker.on_cover(CoverEvent(0, (9, 9), 1.0, 1), 1.0)
+    assert tracker.covered == 0
+
+
+def test_world_state_is_the_authority_for_moves_and_failed_bodies() -> None:
+    grid = _open_grid(4, 4)
+    tracker = MissionTracker(reachable_sub_cells(grid, ((0, 0),)), robots=2)
+    visits = np.zeros((4, 4), dtype=np.int64)
+    visits[:2, :] = 1
+    visits[0, 0] = 2
+    robots = (RobotTruth(0, (0, 0, 1), True, False, False, covered=6),
+              RobotTruth(1, (1, 3, 0), False, False, True, covered=4))
+    state = make_world_state("open", grid.free, visits, robots, 12.0, 0.0)
+    assert tracker.on_world(state, now=1.0)
+    assert tracker.covered == 8
+    assert [v.moves for v in tracker.views] == [5, 3]
+    assert tracker.views[1].lost == "body failed in simhw"
+    summary = summarize(tracker, mission="m", world="open", algo="opt", wall_seconds=1.0,
+                        planned_makespan=5, outcome="test")
+    assert summary.makespan_moves == 5 and summary.total_moves == 8
+    assert summary.revisited == 1 and not summary.complete
+    assert summary.robots_lost == ((1, "body failed in simhw"),)
+    assert "50.0 %" in format_summary(summary)
+
+
+def test_world_state_of_another_map_is_refused() -> None:
+    tracker = MissionTracker(reachable_sub_cells(_open_grid(4, 4), ((0, 0),)), robots=1)
+    free = np.zeros((4, 4), dtype=bool)
+    state = make_world_state("other", free, np.zeros((4, 4), dtype=np.int64), (), 0.0, 0.0)
+    with pytest.raises(ValueError, match="disagrees"):
+        tracker.on_world(state, 0.0)
+
+
+def test_robot_events_deaths_and_statuses() -> None:
+    tracker = MissionTracker(reachable_sub_cells(_open_grid(), ((0, 0),)), robots=3)
+    tracker.on_status(RobotStatus(0, 1, (0, 0), "opt", "d", "covering"))
+    tracker.on_status(RobotStatus(7, 1, (0, 0), "opt", "d", "covering"))  # foreign id
+    assert tracker.announced == 1 and tracker.views[0].state == "covering"
+    for _ in range(2):  # a re-announced event counts once
+        tracker.on_event(RobotEvent(0, 1, "takeover_started", subject=2))
+    tracker.on_event(RobotEvent(1, 1, "completed"))
+    tracker.on_death(DeathNotice(2, 1, detected_by=0, reason="token", detected_at=1.0))
+    tracker.on_death(DeathNotice(2, 1, detected_by=1, reason="heartbeat", detected_at=1.1))
+    tracker.on_death(DeathNotice(1, 1, detected_by=1, reason="leaving", detected_at=1.2))
+    assert len(tracker.takeovers) == 1
+    assert tracker.views[1].completed and not tracker.views[1].lost  # left cleanly
+    assert tracker.views[2].lost == "declared dead by robot 0 (token)"
+    assert tracker.alive == 2
+    assert sum("lost" in line for line in tracker.log) == 1
+
+
+def test_plain_progress_prints_events_and_changed_status_lines() -> None:
+    out = io.StringIO()
+    view = PlainProgress(out, period=0.0)
+    tracker = MissionTracker(reachable_sub_cells(_open_grid(), ((0, 0),)), robots=1)
+    view.event("hello")
+    view.update(tracker, 1.0)
+    view.update(tracker, 2.0)  # nothing changed: no second line
+    tracker.on_cover(CoverEvent(0, (0, 0), 1.0, 1), 1.0)
+    view.update(tracker, 3.0)
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "hello"
+    assert len(lines) == 3 and "(1/48)" in lines[2]
+
+
+# --- run directory, PID identity ------------------------------------------------------------
+
+def _info(processes: tuple[ProcessRecord, ...] = ()) -> FleetInfo:
+    return FleetInfo(mission="m", endpoint="tcp/127.0.0.1:1", own_router=True, world="w",
+                     algo="opt", robots=2, starts=((0, 0), (2, 2)), time_scale=0.0,
+                     created=0.0, processes=processes)
+
+
+def test_fleet_json_round_trip_and_latest(tmp_path: Path) -> None:
+    record = ProcessRecord("agent-1", "agent", 123, 456, "log", robot=1)
+    older, newer = RunDir(tmp_path / "a").create(), RunDir(tmp_path / "b").create()
+    older.write_fleet(_info())
+    time.sleep(0.01)
+    newer.write_fleet(_info((record,)))
+    assert newer.read_fleet() == _info((record,))
+    assert newer.read_fleet().agent(1) == record
+    with pytest.raises(FleetError, match="no agent for robot 0"):
+        newer.read_fleet().agent(0)
+    assert latest_run_dir(tmp_path) == newer.path
+    with pytest.raises(FleetError, match="no fleet run directory"):
+        latest_run_dir(tmp_path / "none")
+    with pytest.raises(FleetError, match="not a fleet run directory"):
+        RunDir(tmp_path / "none").read_fleet()
+
+
+def _sleeper(ignore_term: bool = False) -> subprocess.Popen[bytes]:
+    code = ("import signal, time\n"
+            + ("signal.signal(signal.SIGTERM, signal.SIG_IGN)\n" if ignore_term else "")
+            + "print('ready', flush=True)\ntime.sleep(60)\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stdout.readline() == b"ready\n"
+    return proc
+
+
+def _record(proc: subprocess.Popen[bytes], name: str, role: str,
+            robot: int | None = None) -> ProcessRecord:
+    return ProcessRecord(name, role, proc.pid, start_ticks(proc.pid), robot=robot)
+
+
+def test_pid_identity_survives_only_for_the_same_process() -> None:
+    proc = _sleeper()
+    try:
+        record = _record(proc, "x", "agent")
+        assert is_running(record)
+        reused = ProcessRecord("x", "agent", proc.pid, (record.started or 0) + 1)
+        assert not is_running(reused)  # same pid, another start time: not ours
+    finally:
+        proc.kill()
+        proc.wait()
+    assert not is_running(record)
+
+
+def test_check_port_free_sees_a_listener() -> None:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        sock.listen()
+        port = sock.getsockname()[1]
+        with pytest.raises(FleetError, match="already in use"):
+            check_port_free(f"tcp/127.0.0.1:{port}")
+    check_port_free(f"tcp/127.0.0.1:{port}")
+
+
+def test_kill_and_down_on_stand_in_processes(tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    agent0, agent1, stubborn = _sleeper(), _sleeper(), _sleeper(ignore_term=True)
+    procs = [agent0, agent1, stubborn]
+    try:
+        run_dir = RunDir(tmp_path).create()
+        run_dir.write_fleet(_info((_record(agent0, "agent-0", "agent", 0),
+                                   _record(agent1, "agent-1", "agent", 1),
+                                   _record(stubborn, "simhw", "simhw"))))
+        args = argparse.Namespace(robot=1, hw=False, run_dir=tmp_path)
+        assert cmd_kill.run(args) == 0
+        assert agent1.wait(10) == -signal.SIGKILL
+        assert cmd_kill.run(args) == 2  # already gone: a one-line error
+        assert "not running" in capsys.readouterr().err
+        assert cmd_down.run(argparse.Namespace(run_dir=tmp_path, timeout=1.0)) == 0
+        assert agent0.wait(10) == -signal.SIGTERM
+        assert stubborn.wait(10) == -signal.SIGKILL
+        assert "needed SIGKILL: ['simhw']" in capsys.readouterr().out
+        assert cmd_down.run(argparse.Namespace(run_dir=tmp_path, timeout=1.0)) == 0
+        assert "not running" in capsys.readouterr().out
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()

@@ -1,0 +1,320 @@
+"""ORMSTC in the fleet: a router, ``mstc simhw`` and k ``mstc agent --algo ormstc`` processes.
+
+Oracles: simhw's ground truth (visit counts and where the bodies stopped, from the WorldState
+query) against what must be covered, computed from the map alone (tests/ormstc_oracles.py);
+the tree edges and starts the agents published, for ownership. The sensing geometry is
+checked first, without processes, against simhw's own ray cast on random worlds.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import random
+import signal
+import subprocess
+import sys
+from collections import defaultdict
+from collections.abc import AsyncIterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from ormstc_oracles import must_cover
+
+from agent.ormstc_sensing import (
+    HEADING_DELTA,
+    SonarMap,
+    ahead,
+    cell_of,
+    judge,
+    near_distance,
+    sub_cells,
+)
+from agent.ormstc_wire import WIRE_TYPES
+from bus import keys
+from bus.bridge import BoundedFifo, Bus
+from bus.config import ConnectionSettings
+from bus.messages import (
+    GroundTruthPose,
+    OrmstcStart,
+    OrmstcTreeEdge,
+    OrmstcWire,
+    WorldState,
+    world_visits,
+)
+from planner.maps import parse_ascii
+from planner.ormstc.types import CellStatus
+from planner.types import OccupancyGrid, SubCell
+from simhw.sensors import sonar_range
+from simhw.types import Heading
+
+# ---- sensing geometry (no processes) ------------------------------------------------------
+
+
+@st.composite
+def ray_cases(draw: st.DrawFn) -> tuple[np.ndarray, SubCell, int]:
+    """A random blocked mask, a free sub-cell in a free cell, and a direction."""
+    h, w = 2 * draw(st.integers(3, 6)), 2 * draw(st.integers(3, 6))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    blocked = rng.random((h, w)) < draw(st.floats(0.0, 0.4))
+    cell = (draw(st.integers(0, h // 2 - 1)), draw(st.integers(0, w // 2 - 1)))
+    for r, c in sub_cells(cell):
+        blocked[r, c] = False
+    pos = draw(st.sampled_from(sub_cells(cell)))
+    return blocked, pos, draw(st.integers(0, 3))
+
+
+def truth(blocked: np.ndarray, cell: tuple[int, int]) -> bool:
+    h, w = blocked.shape
+    return any(not (0 <= r < h and 0 <= c < w) or blocked[r, c] for r, c in sub_cells(cell))
+
+
+@settings(max_examples=300, deadline=None)
+@given(ray_cases())
+def test_near_distance_is_where_the_ray_enters_the_neighbour(
+        case: tuple[np.ndarray, SubCell, int]) -> None:
+    _, pos, d = case
+    target = (cell_of(pos)[0] + HEADING_DELTA[d][0], cell_of(pos)[1] + HEADING_DELTA[d][1])
+    first = next(k for k in range(1, 4) if cell_of(ahead(pos, d, k)) == target)
+    assert near_distance(pos, d) == first
+    assert cell_of(ahead(pos, d, first + 1)) == target
+
+
+@settings(max_examples=300, deadline=None)
+@given(ray_cases())
+def test_judging_from_both_rows_gives_the_true_status(
+        case: tuple[np.ndarray, SubCell, int]) -> None:
+    """One ray sees half the cell; after a ray along the other row it knows the whole cell."""
+    blocked, pos, d = case
+    here = cell_of(pos)
+    target = (here[0] + HEADING_DELTA[d][0], here[1] + HEADING_DELTA[d][1])
+    sonar = SonarMap()
+    nobody = lambda _cell: False  # noqa: E731 - only static obstacles here
+    reading = sonar_range(blocked, pos, Heading(d), sonar.max_range)
+    seen = [ahead(pos, d, near_distance(pos, d) + i) for i in (0, 1)]
+    h, w = blocked.shape
+    half_blocked = any(not (0 <= r < h and 0 <= c < w) or blocked[r, c] for r, c in seen)
+    sonar.record(pos, d, reading, nobody)
+    first = judge(target, pos, d, reading, sonar, nobody)
+    assert (first is CellStatus.OBSTACLE) == half_blocked
+    # the other row or column of the robot's cell looking the same way
+    other = next(s for s in sub_cells(here) if s != pos
+                 and near_distance(s, d) == near_distance(pos, d))
+    sonar.record(other, d, sonar_range(blocked, other, Heading(d), sonar.max_range), nobody)
+    again = judge(target, pos, d, reading, sonar, nobody)
+    assert (again is CellStatus.OBSTACLE) == truth(blocked, target)
+    # a cell where a body may stand is never called an obstacle: bodies move
+    anybody = lambda _cell: True  # noqa: E731
+    assert judge(target, pos, d, reading, SonarMap(), anybody) is not CellStatus.OBSTACLE
+
+
+# ---- the fleet ------------------------------------------------------------------------------
+
+_missions = itertools.count()
+# 6 x 8 cells, two one-cell pillars; obstacles fill whole cells (see docs/ormstc.md, sensing).
+ROOM = ["................"] * 4 + ["......##........"] * 2 + ["................"] * 2 \
+    + ["..........##...."] * 2 + ["................"] * 2
+STARTS: tuple[SubCell, ...] = ((0, 0), (0, 15), (11, 0), (11, 15))
+TIMEOUT = 60.0
+
+
+@dataclass
+class Fleet:
+    world: Path
+    router: str
+    mission: str
+    starts: tuple[SubCell, ...]
+    simhw: subprocess.Popen[str] | None = None
+    agents: dict[int, subprocess.Popen[str]] = field(default_factory=dict)
+    owners: dict[tuple[int, int], set[int]] = field(default_factory=lambda: defaultdict(set))
+    covers: dict[int, int] = field(default_factory=lambda: defaultdict(int))
+
+    def start(self, *, time_scale: float = 0, sonar: str = "all", agent_args: tuple[str, ...]
+              = ()) -> None:
+        robots = ";".join(f"{r},{c}" for r, c in self.starts)
+        conn = ["--connect", self.router, "--mission", self.mission]
+        self.simhw = subprocess.Popen(
+            [sys.executable, "-m", "deploy.cli", "simhw", "--world", str(self.world),
+             "--robots", robots, "--time-scale", str(time_scale), "--sonar-mode", sonar,
+             *conn], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE, text=True)
+        for robot in range(len(self.starts)):
+            self.agents[robot] = subprocess.Popen(
+                [sys.executable, "-m", "deploy.cli", "agent", "--id", str(robot),
+                 "--algo", "ormstc", "--robots", str(len(self.starts)), *conn,
+                 "--start-timeout", "30", "--linger", "0.3", "--dead-after", "3",
+                 *agent_args],
+                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                text=True)
+
+    async def wait_exit(self, robot: int) -> int:
+        return int(await asyncio.to_thread(self.agents[robot].wait, TIMEOUT))
+
+    def stderr(self, robot: int) -> str:
+        proc = self.agents[robot]
+        return proc.stderr.read() if proc.stderr and proc.poll() is not None else ""
+
+    def stop_all(self) -> None:
+        procs = [*self.agents.values(), *([self.simhw] if self.simhw else [])]
+        for proc in procs:
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+        for proc in procs:
+            try:
+                proc.wait(10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            for stream in (proc.stdout, proc.stderr):
+                if stream is not None:
+                    stream.close()
+
+
+def load_room(path: Path) -> OccupancyGrid:
+    return parse_ascii(path.read_text(), source=str(path))
+
+
+@pytest.fixture
+def room(tmp_path: Path) -> Path:
+    path = tmp_path / "room.txt"
+    path.write_text("\n".join(ROOM) + "\n")
+    return path
+
+
+@pytest.fixture
+async def bus(router: str) -> AsyncIterator[Bus]:
+    mission = f"ormstc{next(_missions)}"
+    async with Bus.connect(ConnectionSettings(connect=(router,), mission=mission)) as opened:
+        yield opened
+
+
+async def make_fleet(bus: Bus, router: str, room: Path,
+                     starts: tuple[SubCell, ...] = STARTS) -> Fleet:
+    fleet = Fleet(room, router, bus.mission, starts)
+
+    def on_ormstc(_key: str, wire: OrmstcWire) -> None:
+        if isinstance(wire, OrmstcTreeEdge):
+            fleet.owners[wire.child].add(wire.robot)
+        elif isinstance(wire, OrmstcStart):
+            fleet.owners[cell_of(wire.sub)].add(wire.robot)
+
+    bus.subscribe(keys.all_ormstc(bus.mission), WIRE_TYPES, on_ormstc, BoundedFifo(65536))
+    await asyncio.sleep(0.3)  # let the subscription reach the router first
+    return fleet
+
+
+async def world_state(bus: Bus) -> WorldState:
+    replies = await bus.query(keys.world(bus.mission), None, WorldState, timeout=5.0)
+    assert replies, "simhw did not answer the world query"
+    return replies[0].msg
+
+
+def check_complete(state: WorldState, grid: OccupancyGrid, starts: tuple[SubCell, ...],
+                   dead: set[int]) -> np.ndarray:
+    """Every sub-cell reachable by the survivors around the dead bodies was covered."""
+    visits = world_visits(state)
+    bodies = [(t.pose[0], t.pose[1]) for t in state.robots if t.robot in dead]
+    alive = [s for i, s in enumerate(starts) if i not in dead]
+    need = must_cover(grid, alive, bodies)
+    assert need.sum() > 0
+    missed = need & (visits == 0)
+    assert not missed.any(), f"uncovered sub-cells {np.argwhere(missed)[:10].tolist()}"
+    return visits
+
+
+def check_ownership(fleet: Fleet, dead: set[int]) -> None:
+    """No cell was taken by two robots that both stayed alive."""
+    assert fleet.owners, "no start or tree edge was heard"
+    for cell, robots in fleet.owners.items():
+        assert len(robots - dead) <= 1, f"cell {cell} owned by live robots {robots - dead}"
+
+
+async def run_to_end(fleet: Fleet, robots: list[int]) -> None:
+    codes = [await fleet.wait_exit(r) for r in robots]
+    assert codes == [0] * len(robots), [fleet.stderr(r) for r in robots]
+    await asyncio.sleep(0.2)  # the last published tree edges
+
+
+@pytest.mark.integration
+async def test_four_robots_cover_everything_once(bus: Bus, router: str, room: Path) -> None:
+    fleet = await make_fleet(bus, router, room)
+    try:
+        fleet.start()
+        await run_to_end(fleet, list(range(len(STARTS))))
+        state = await world_state(bus)
+        grid = load_room(room)
+        visits = check_complete(state, grid, STARTS, dead=set())
+        # non-redundancy: each sub-cell entered once, a start twice (its robot comes home)
+        allowed = np.ones_like(visits)
+        for r, c in STARTS:
+            allowed[r, c] = 2
+        assert (visits <= allowed).all(), np.argwhere(visits > allowed).tolist()
+        check_ownership(fleet, dead=set())
+        assert all(t.covered > 1 for t in state.robots), "a robot never moved"
+    finally:
+        fleet.stop_all()
+
+
+@pytest.mark.integration
+async def test_a_robot_killed_mid_mission_is_taken_over(bus: Bus, router: str,
+                                                        room: Path) -> None:
+    victim = random.Random(4).randrange(len(STARTS))
+    fleet = await make_fleet(bus, router, room)
+    moved = asyncio.Event()
+
+    def on_pose(_key: str, _msg: GroundTruthPose) -> None:
+        fleet.covers[victim] += 1
+        if fleet.covers[victim] >= 20:
+            moved.set()
+
+    bus.subscribe(keys.sim_pose(bus.mission, victim), GroundTruthPose, on_pose)
+    await asyncio.sleep(0.2)
+    try:
+        fleet.start()
+        async with asyncio.timeout(TIMEOUT):
+            await moved.wait()
+        fleet.agents[victim].send_signal(signal.SIGKILL)
+        survivors = [r for r in range(len(STARTS)) if r != victim]
+        await run_to_end(fleet, survivors)
+        state = await world_state(bus)
+        check_complete(state, load_room(room), STARTS, dead={victim})
+        check_ownership(fleet, dead={victim})
+        taken = [cell for cell, robots in fleet.owners.items() if victim in robots
+                 and len(robots) > 1]
+        assert taken, "no survivor took over a cell of the killed robot"
+    finally:
+        fleet.stop_all()
+
+
+@pytest.mark.integration
+async def test_one_sonar_at_a_time_completes(bus: Bus, router: str, room: Path) -> None:
+    starts = STARTS[:3]
+    fleet = await make_fleet(bus, router, room, starts)
+    try:
+        fleet.start(sonar="one-at-a-time", agent_args=("--sense-mode", "single"))
+        await run_to_end(fleet, list(range(len(starts))))
+        state = await world_state(bus)
+        visits = check_complete(state, load_room(room), starts, dead=set())
+        allowed = np.ones_like(visits)
+        for r, c in starts:
+            allowed[r, c] = 2
+        assert (visits <= allowed).all()
+        check_ownership(fleet, dead=set())
+    finally:
+        fleet.stop_all()
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["--id", "4", "--robots", "4"], "--id 4 is not below --robots 4"),
+    (["--id", "0", "--robots", "2", "--claim-wait", "0"], "expected a number of seconds > 0"),
+])
+def test_user_mistakes_give_one_line(argv: list[str], needle: str) -> None:
+    done = subprocess.run([sys.executable, "-m", "deploy.cli", "agent", "--algo", "ormstc",
+                           *argv], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert needle in lines[-1] and "Traceback" not in done.stderr
