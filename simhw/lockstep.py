@@ -11,6 +11,7 @@ every live robot is idle (finished, nothing left to take over) and no message is
 
 from __future__ import annotations
 
+import gc
 import random
 from collections import defaultdict
 from collections.abc import Sequence
@@ -36,6 +37,7 @@ from planner.ormstc.types import (
     PeerDied,
     PeerMessage,
     Priority,
+    Request,
     Sense,
     SenseMode,
     SenseResult,
@@ -45,6 +47,9 @@ from planner.ormstc.types import (
     TreeEdgeMsg,
 )
 from planner.types import BoolArray, IntArray, OccupancyGrid
+
+_MOVED, _BUMPED = MoveResult(True), MoveResult(False)  # frozen: shared by every answer
+_STEPS = frozenset({(-1, 0), (1, 0), (0, -1), (0, 1)})
 
 
 @dataclass(frozen=True)
@@ -121,14 +126,16 @@ class LockstepSim:
             robot=i, team=len(self.starts), start=(float(s[0]), float(s[1])),
             claim_wait=wait, sense_mode=cfg.sense_mode, priority=cfg.priority,
             watch_interval=cfg.watch_interval, seed=cfg.seed,
-            announce_connections=cfg.announce_connections)) for i, s in enumerate(self.starts)]
+            announce_connections=cfg.announce_connections), instant=self)
+            for i, s in enumerate(self.starts)]
         self._rng = random.Random(cfg.seed)
         h, w = world.shape
         self._free = world.free.tolist()
         self._h, self._w = h, w
-        self.visits = np.zeros((h, w), dtype=np.int64)
-        self.first_robot = np.full((h, w), -1, dtype=np.int64)
-        self.first_step = np.full((h, w), -1, dtype=np.int64)
+        # plain lists while running (numpy scalar indexing is slow); arrays in the result
+        self._visits = [0] * (h * w)
+        self._first_robot = [-1] * (h * w)
+        self._first_step = [-1] * (h * w)
         self.body: dict[SubCell, int] = {s: i for i, s in enumerate(self.starts)}
         self.pos = list(self.starts)
         self.paths: list[list[SubCell]] = [[s] for s in self.starts]
@@ -139,10 +146,19 @@ class LockstepSim:
         self.claims: list[tuple[int, int, Cell]] = []
         self.conflicts: list[tuple[int, Cell, int, int]] = []
         self.owner: dict[Cell, list[int]] = defaultdict(list)
-        self._queue: dict[int, list[tuple[int, Event]]] = defaultdict(list)
+        # due step -> events in the order sent. Equal delays: one list every robot gets (a
+        # machine ignores its own broadcasts and its own PeerDied, so one entry per broadcast
+        # serves all recipients). Random delays: one list per recipient.
+        k = len(self.starts)
+        self._per_robot = self.config.delay[0] != self.config.delay[1]
+        self._queue: dict[int, list[Event]] = defaultdict(list)
+        self._queue_to: dict[int, list[list[Event]]] = defaultdict(
+            lambda: [[] for _ in range(k)])
+        self._due_count: dict[int, int] = defaultdict(int)  # recipient deliveries per step
         self._fifo: dict[tuple[int, int], int] = {}
-        self._inbox: list[list[Event]] = [[] for _ in self.starts]
+        self._answer: list[MoveResult | None] = [None] * len(self.starts)  # due next step
         self._in_flight = 0
+        self._live = len(self.starts)
         for i, s in enumerate(self.starts):
             self._visit(i, s, 0)
 
@@ -162,64 +178,86 @@ class LockstepSim:
     # ---- the loop ----
 
     def run(self) -> SimResult:
+        # the loop allocates many short-lived containers and makes no reference cycles, so
+        # the cyclic collector finds nothing and costs ~15% of a run (docs/ormstc.md,
+        # benchmark): pause it for the run and restore it after
+        enabled = gc.isenabled()
+        gc.disable()
+        try:
+            return self._loop()
+        finally:
+            if enabled:
+                gc.enable()
+
+    def _loop(self) -> SimResult:
         k = len(self.starts)
         limit = self.config.max_steps or 60 * self.world.free.size + 1000
         failures: dict[int, list[int]] = defaultdict(list)
         for robot, at in self.config.failures:
             failures[at].append(robot)
+        machines, alive, answers = self.machines, self.alive, self._answer
         step = 0
         finished = False
         while step < limit:
             for robot in failures.get(step, ()):
                 self._kill(robot, step)
-            queued = self._queue.pop(step, ())
-            for robot, event in queued:
-                self._in_flight -= 1
-                if self.alive[robot]:
-                    self._inbox[robot].append(event)
+            shared = self._queue.pop(step, None)
+            addressed = self._queue_to.pop(step, None)
+            self._in_flight -= self._due_count.pop(step, 0)
             tick = Tick(float(step))
             for robot in range(k):
-                if self.alive[robot]:
-                    self._act(robot, step, tick)
+                if not alive[robot]:
+                    continue
+                machine = machines[robot]
+                answer = answers[robot]
+                events: list[Event] = [tick] if answer is None else [tick, answer]
+                if shared:
+                    events += shared
+                elif addressed:
+                    events += addressed[robot]
+                if len(events) == 1:
+                    wake = machine.wake_time()
+                    if wake is not None and wake > step:
+                        continue  # nothing new and nothing due: stepping would change nothing
+                answers[robot] = None
+                requests = machine.step(events)
+                if len(requests) == 1 and requests[0].__class__ is Move:  # the usual answer
+                    answers[robot] = (_MOVED if self._move(robot, requests[0].to, step)
+                                      else _BUMPED)
+                elif requests:
+                    self._carry_out(robot, step, machine, requests)
             if self._in_flight == 0 and all(
-                    m.idle for m, a in zip(self.machines, self.alive, strict=True) if a):
+                    m.idle for m, a in zip(machines, alive, strict=True) if a):
                 finished = True
                 break
             step += 1
         return self._result(step, finished)
 
-    def _act(self, robot: int, step: int, tick: Tick) -> None:
-        machine = self.machines[robot]
-        events = self._inbox[robot]
-        if not events:
-            wake = machine.wake_time()
-            if wake is not None and wake > step:
-                return  # nothing new and nothing due: stepping would change nothing
-        self._inbox[robot] = []
-        events.insert(0, tick)
-        requests = machine.step(events)
+    def _carry_out(self, robot: int, step: int, machine: OrmstcMachine,
+                   requests: list[Request]) -> None:
         while requests:
-            answer: Event | None = None
+            reply: Event | None = None
             for request in requests:
-                kind = type(request)
-                if kind is Broadcast:
-                    self._broadcast(robot, step, request)  # type: ignore[arg-type]
-                elif kind is Move:
+                kind = request.__class__
+                if kind is Move:
                     ok = self._move(robot, request.to, step)  # type: ignore[union-attr]
-                    self._inbox[robot].append(MoveResult(ok))
-                elif kind is Sense:
-                    answer = SenseResult(tuple((c, self._status(c))
-                                               for c in request.cells))  # type: ignore[union-attr]
+                    self._answer[robot] = _MOVED if ok else _BUMPED
+                elif kind is Broadcast:
+                    self._broadcast(robot, step, request)  # type: ignore[arg-type]
+                elif kind is Sense:  # machines built here ask ``instant``; others may not
+                    reply = SenseResult(tuple([(c, self.cell_status(c))
+                                               for c in request.cells]))  # type: ignore[union-attr]
                 elif kind is IsAlive:
-                    answer = AliveResult(request.robot,  # type: ignore[union-attr]
-                                         self.alive[request.robot])  # type: ignore[union-attr]
+                    reply = AliveResult(request.robot,  # type: ignore[union-attr]
+                                        self.alive[request.robot])  # type: ignore[union-attr]
                 elif kind is Done:
                     self.done_steps[robot] = step
-            requests = machine.step((answer,)) if answer is not None else []
+            requests = machine.step((reply,)) if reply is not None else []
 
     # ---- ground truth ----
 
-    def _status(self, cell: Cell) -> CellStatus:
+    def cell_status(self, cell: Cell) -> CellStatus:
+        """Ground truth for a machine's sensing (the machines ask it directly: ``instant``)."""
         r, c = 2 * cell[0], 2 * cell[1]
         if r < 0 or c < 0 or r + 1 >= self._h or c + 1 >= self._w:
             return CellStatus.OBSTACLE
@@ -231,53 +269,74 @@ class LockstepSim:
             return CellStatus.ROBOT
         return CellStatus.FREE
 
+    def is_alive(self, robot: int) -> bool:
+        return self.alive[robot]
+
     def _move(self, robot: int, to: SubCell, step: int) -> bool:
         here = self.pos[robot]
-        if abs(to[0] - here[0]) + abs(to[1] - here[1]) != 1:
-            raise AssertionError(f"robot {robot} asked to jump from {here} to {to}")
         r, c = to
-        if not (0 <= r < self._h and 0 <= c < self._w) or not self._free[r][c]:
+        if (r - here[0], c - here[1]) not in _STEPS:
+            raise AssertionError(f"robot {robot} asked to jump from {here} to {to}")
+        if not (0 <= r < self._h and 0 <= c < self._w and self._free[r][c]):
             raise AssertionError(f"robot {robot} drove into an obstacle at {to}")
-        if to in self.body:
+        body = self.body
+        if to in body:
             return False
-        del self.body[here]
-        self.body[to] = robot
+        del body[here]
+        body[to] = robot
         self.pos[robot] = to
         self.paths[robot].append(to)
-        self._visit(robot, to, step)
+        at = r * self._w + c  # _visit, inlined: once per move
+        if self._visits[at] == 0:
+            self._first_robot[at] = robot
+            self._first_step[at] = step
+        self._visits[at] += 1
         return True
 
     def _visit(self, robot: int, sub: SubCell, step: int) -> None:
-        if self.visits[sub] == 0:
-            self.first_robot[sub] = robot
-            self.first_step[sub] = step
-        self.visits[sub] += 1
+        at = sub[0] * self._w + sub[1]
+        if self._visits[at] == 0:
+            self._first_robot[at] = robot
+            self._first_step[at] = step
+        self._visits[at] += 1
 
     def _broadcast(self, sender: int, step: int, request: Broadcast) -> None:
         message = request.message
-        if isinstance(message, TreeEdgeMsg):
-            self._own(sender, message.child, step)
-            self.trees[sender].append((message.parent, message.child))
-        elif isinstance(message, StartMsg):
-            self._own(sender, (message.sub[0] // 2, message.sub[1] // 2), step)
-        elif isinstance(message, ClaimMsg):
-            self.claims.append((step, sender, message.cell))
+        kind = type(message)
+        if kind is TreeEdgeMsg:
+            self._own(sender, message.child, step)  # type: ignore[union-attr]
+            self.trees[sender].append((message.parent, message.child))  # type: ignore[union-attr]
+        elif kind is ClaimMsg:
+            self.claims.append((step, sender, message.cell))  # type: ignore[union-attr]
+        elif kind is StartMsg:
+            sub = message.sub  # type: ignore[union-attr]
+            self._own(sender, (sub[0] // 2, sub[1] // 2), step)
         lo, hi = self.config.delay
-        event = PeerMessage(sender, message)
-        queue, fifo, alive = self._queue, self._fifo, self.alive
+        event = PeerMessage(sender, message)  # immutable: one object for every recipient
+        alive = self.alive
         if lo == hi:  # equal delays keep every sender's messages in order by themselves
-            bucket = queue[step + max(lo, 1)]
-            for peer in range(len(alive)):
-                if peer != sender and alive[peer]:
-                    bucket.append((peer, event))
-                    self._in_flight += 1
+            peers = self._live - 1  # the sender is alive: it is acting
+            if peers:
+                due = step + max(lo, 1)
+                self._queue[due].append(event)
+                self._due_count[due] += peers
+                self._in_flight += peers
             return
+        fifo = self._fifo
+        # random.randint(lo, hi) unrolled into the getrandbits draws it makes (the same
+        # stream, so the same runs per seed): three Python frames less per recipient
+        width = hi - lo + 1
+        bits, draw = width.bit_length(), self._rng.getrandbits
         for peer in range(len(alive)):
             if peer == sender or not alive[peer]:
                 continue
-            due = max(step + max(self._rng.randint(lo, hi), 1), fifo.get((sender, peer), 0))
+            r = draw(bits)
+            while r >= width:
+                r = draw(bits)
+            due = max(step + max(lo + r, 1), fifo.get((sender, peer), 0))
             fifo[(sender, peer)] = due
-            queue[due].append((peer, event))
+            self._queue_to[due][peer].append(event)
+            self._due_count[due] += 1
             self._in_flight += 1
 
     def _own(self, robot: int, cell: Cell, step: int) -> None:
@@ -291,23 +350,33 @@ class LockstepSim:
         if not self.alive[robot]:
             return
         self.alive[robot] = False
+        self._live -= 1
         self.deaths[robot] = step
         due = step + max(self.config.detect_delay, 1)
-        for peer in range(len(self.starts)):
-            if peer != robot:
-                self._queue[due].append((peer, PeerDied(robot)))
-                self._in_flight += 1
+        event = PeerDied(robot)
+        if self._per_robot:
+            lists = self._queue_to[due]
+            for peer in range(len(self.starts)):
+                if peer != robot:
+                    lists[peer].append(event)
+        else:
+            self._queue[due].append(event)  # the robot itself ignores it (and is dead)
+        self._due_count[due] += len(self.starts) - 1
+        self._in_flight += len(self.starts) - 1
 
     def _result(self, step: int, finished: bool) -> SimResult:
         return SimResult(
             world=self.world, starts=self.starts, steps=step, finished=finished,
-            paths=tuple(tuple(p) for p in self.paths), visits=self.visits,
-            first_robot=self.first_robot, first_step=self.first_step,
+            paths=tuple(tuple(p) for p in self.paths), visits=self._grid(self._visits),
+            first_robot=self._grid(self._first_robot), first_step=self._grid(self._first_step),
             trees=tuple(tuple(t) for t in self.trees), claims=tuple(self.claims),
             conflicts=tuple(self.conflicts), deaths=dict(self.deaths),
             done_steps=dict(self.done_steps),
             sense_turns=tuple(m.sense_turns for m in self.machines),
             bumps=tuple(m.bumps for m in self.machines), kinematics=self.config.kinematics)
+
+    def _grid(self, values: list[int]) -> IntArray:
+        return np.array(values, dtype=np.int64).reshape(self._h, self._w)
 
 
 def simulate(world: OccupancyGrid, starts: Sequence[SubCell],

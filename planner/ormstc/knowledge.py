@@ -4,7 +4,9 @@ the messages it heard: cell owners, obstacles, dead and finished robots, pending
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 from planner.ormstc.claims import ClaimBook
 from planner.ormstc.types import (
@@ -41,11 +43,25 @@ class Knowledge:
     now: float = 0.0  # the owning machine keeps this current
     claims: ClaimBook = field(init=False)
     changed: bool = False  # a peer finished, withdrew or died since the flag was cleared
+    # far cells of the connection table (planner/ormstc/connections.py may remove none) and
+    # whether any of their owner lists changed: lets the table skip an unchanged re-scan
+    watched: set[Cell] = field(default_factory=set)
+    watched_changed: bool = False
+    # message class -> what hearing it does; one dict lookup per message instead of a chain
+    handlers: dict[type, Callable[[Any], None]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.claims = ClaimBook(self.priority, self.claim_ttl)
+        self._pending = self.claims.pending  # the same dict, one attribute nearer
+        self._fewest = self.priority is Priority.FEWEST
+        self._others = frozenset(range(self.team)) - {self.me}
+        self.handlers = {TreeEdgeMsg: self._hear_edge, ClaimMsg: self._hear_claim,
+                         StartMsg: self._hear_start, CompletionMsg: self._hear_completion,
+                         WithdrawalMsg: self._hear_withdrawal, DeadRobotMsg: self._hear_dead}
 
     def own(self, cell: Cell, robot: int) -> None:
+        if cell in self.watched:
+            self.watched_changed = True
         holders = self.owners.setdefault(cell, [])
         if robot in holders:
             holders.remove(robot)
@@ -88,41 +104,56 @@ class Knowledge:
 
     def hear(self, message: Message) -> None:
         """Update the map from a peer's message (order across senders is arbitrary)."""
-        kind = type(message)
-        if kind is TreeEdgeMsg:
-            self._hear_edge(message)  # type: ignore[arg-type]
-        elif kind is ClaimMsg:
-            self.claims.hear(message.cell, message.robot,  # type: ignore[union-attr]
-                             message.covered, self.now)  # type: ignore[union-attr]
-        elif kind is StartMsg:
-            sub = message.sub  # type: ignore[union-attr]
-            self.starts[message.robot] = sub
-            self.own((sub[0] >> 1, sub[1] >> 1), message.robot)
-            self.changed = True
-        elif kind is CompletionMsg:
-            self.completed.add(message.robot)
-            self.changed = True
-        elif kind is WithdrawalMsg:
-            self.completed.discard(message.robot)
-            self.changed = True
-        elif kind is DeadRobotMsg:
-            self.mark_dead(message.dead)  # type: ignore[union-attr]
-            self.released.add(message.dead)  # type: ignore[union-attr]
-            self.changed = True
+        handler = self.handlers.get(message.__class__)
+        if handler is not None:  # ConnectionMsg is for monitors only
+            handler(message)
 
     def _hear_edge(self, message: TreeEdgeMsg) -> None:
         child = message.child
         holders = self.owners.get(child)
         if holders is None:
             self.owners[child] = [message.robot]
+            if child in self.watched:
+                self.watched_changed = True
         else:
             self.own(child, message.robot)
-        self.claims.pending.pop(child, None)
+        self._pending.pop(child, None)  # claims.settle
+
+    def _hear_claim(self, message: ClaimMsg) -> None:
+        # ClaimBook.hear with priority_key inlined: every robot hears every claim
+        robot = message.robot
+        claim = ((-message.covered, robot) if self._fewest else (0, robot),
+                 self.now + self.claim_ttl)
+        pending = self._pending
+        heard = pending.get(message.cell)
+        if heard is None:
+            pending[message.cell] = {robot: claim}
+        else:
+            heard[robot] = claim
+
+    def _hear_start(self, message: StartMsg) -> None:
+        sub = message.sub
+        self.starts[message.robot] = sub
+        self.own((sub[0] >> 1, sub[1] >> 1), message.robot)
+        self.changed = True
+
+    def _hear_completion(self, message: CompletionMsg) -> None:
+        self.completed.add(message.robot)
+        self.changed = True
+
+    def _hear_withdrawal(self, message: WithdrawalMsg) -> None:
+        self.completed.discard(message.robot)
+        self.changed = True
+
+    def _hear_dead(self, message: DeadRobotMsg) -> None:
+        self.mark_dead(message.dead)
+        self.released.add(message.dead)
+        self.changed = True
 
     def all_started(self) -> bool:
         return all(r in self.starts or r in self.dead for r in range(self.team))
 
     def peers_settled(self) -> bool:
         """Every other robot finished, or died finished, or died and had its cells freed."""
-        return all(r == self.me or r in self.completed or (r in self.dead and r in self.released)
-                   for r in range(self.team))
+        # set algebra, not a loop over the team: watchers ask this on every wake
+        return not self._others.difference(self.completed, self.dead & self.released)

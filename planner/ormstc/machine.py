@@ -9,16 +9,19 @@ tick the machine while it has nothing else to say. Nothing assumes lockstep deli
 messages may come late and in any order across senders (FIFO per sender is assumed).
 
 The algorithm is written as one generator (the recursive DFS of Alg. 2 unrolled into the STC
-walk around the growing tree); ``step`` resumes it when what it waits for has arrived.
+walk around the growing tree); ``step`` resumes it when what it waits for has arrived. A driver
+that knows the ground truth (the lockstep simulator) may pass ``instant`` answers: sensing and
+liveness are then asked through it inside ``step`` instead of as Sense / IsAlive requests,
+which is the same as answering those requests at once, minus a round trip per question.
+Lines 21-36 (completion, watching, takeover) are in planner/ormstc/watch.py.
 """
 
 from __future__ import annotations
 
-import math
 import random
 from collections.abc import Generator, Iterable
 
-from planner.ormstc.connections import Connections, Link
+from planner.ormstc.connections import Connections
 from planner.ormstc.knowledge import Knowledge
 from planner.ormstc.types import (
     AliveResult,
@@ -26,11 +29,10 @@ from planner.ormstc.types import (
     Cell,
     CellStatus,
     ClaimMsg,
-    CompletionMsg,
     ConnectionMsg,
     DeadRobotMsg,
-    Done,
     Event,
+    InstantAnswers,
     IsAlive,
     MachineConfig,
     Message,
@@ -46,31 +48,22 @@ from planner.ormstc.types import (
     SubCell,
     Tick,
     TreeEdgeMsg,
-    WithdrawalMsg,
 )
-from planner.ormstc.walk import (
-    DELTA,
-    arrival_side,
-    cell_of,
-    neighbour,
-    predecessor,
-    side_of,
-    side_towards,
-    sub_facing,
-    successor,
-    walk_index,
-)
+from planner.ormstc.walk import DELTA, SIDE_AT, arrival_side, cell_of, neighbour
+from planner.ormstc.watch import watch
 
 _ANSWER, _UNTIL, _WAKE, _FINISHED = 0, 1, 2, 3
 Action = tuple[int, object]
 Flow = Generator[Action, object, object]
+_HEADING = {delta: side for side, delta in enumerate(DELTA)}
 
 
 class OrmstcMachine:
     """One robot's ORMSTC controller. Public state is read-only for drivers and tests."""
 
-    def __init__(self, config: MachineConfig) -> None:
+    def __init__(self, config: MachineConfig, instant: InstantAnswers | None = None) -> None:
         self.config = config
+        self.instant = instant
         self.me = config.robot
         # a claim heard at t is decided by t + wait and its edge heard by t + wait + D, with
         # D <= (wait + 1) / 2; 2 wait + 1 is past both
@@ -105,11 +98,15 @@ class OrmstcMachine:
     def step(self, events: Iterable[Event] = ()) -> list[Request]:
         """Feed what happened; get what to do next. Put a Tick before the messages it dates."""
         know = self.know
+        handlers, me = know.handlers, self.me
         for event in events:
-            kind = type(event)
+            kind = event.__class__
             if kind is PeerMessage:
-                if event.sender != self.me:  # type: ignore[union-attr]
-                    know.hear(event.message)  # type: ignore[union-attr]
+                if event.sender != me:  # type: ignore[union-attr]
+                    message = event.message  # type: ignore[union-attr]
+                    handler = handlers.get(message.__class__)  # Knowledge.hear, inlined
+                    if handler is not None:
+                        handler(message)
             elif kind is Tick:
                 if event.now > self.now:  # type: ignore[union-attr]
                     self.now = know.now = event.now  # type: ignore[union-attr]
@@ -117,7 +114,8 @@ class OrmstcMachine:
                 know.mark_dead(event.robot)  # type: ignore[union-attr]
             else:
                 self._answer = event
-        self._advance()
+        if self._ready():
+            self._advance()
         out, self._out = self._out, []
         return out
 
@@ -143,38 +141,41 @@ class OrmstcMachine:
 
     # ---- coroutine plumbing ----
 
+    def _ready(self) -> bool:
+        """Whether what the generator waits for has come (a machine that only heard, not)."""
+        wait = self._wait
+        if wait == _ANSWER:
+            return self._answer is not None or not self._started
+        if wait == _UNTIL:
+            return self.now >= self._wait_until
+        return wait == _WAKE and (self.now >= self._wait_until or self.know.changed)
+
     def _advance(self) -> None:
+        """Resume the generator until it waits for something that has not come yet."""
+        send = self._gen.send
+        value: object = None
         if not self._started:
             self._started = True
-            self._resume(None)
+        elif self._wait == _ANSWER:
+            value, self._answer = self._answer, None
         while True:
-            if self._wait == _ANSWER:
-                if self._answer is None:
-                    return
-                value, self._answer = self._answer, None
-            elif self._wait == _UNTIL:
-                if self.now < self._wait_until:
-                    return
-                value = None
-            elif self._wait == _WAKE:
-                if self.now < self._wait_until and not self.know.changed:
-                    return
-                value = None
-            else:
+            try:
+                kind, arg = send(value)
+            except StopIteration:
+                self._wait = _FINISHED
                 return
-            self._resume(value)
-
-    def _resume(self, value: object) -> None:
-        try:
-            kind, arg = self._gen.send(value)
-        except StopIteration:
-            self._wait = _FINISHED
-            return
-        self._wait = kind
-        if kind == _ANSWER:
-            self._out.append(arg)  # type: ignore[arg-type]
-        else:
-            self._wait_until = float(arg)  # type: ignore[arg-type]
+            self._wait = kind
+            if kind == _ANSWER:
+                self._out.append(arg)  # type: ignore[arg-type]
+                value = self._answer
+                if value is None:
+                    return
+                self._answer = None
+            else:
+                until = self._wait_until = float(arg)  # type: ignore[arg-type]
+                if self.now < until and (kind == _UNTIL or not self.know.changed):
+                    return
+                value = None
 
     def _send(self, message: Message) -> None:
         self._out.append(Broadcast(message))
@@ -192,7 +193,7 @@ class OrmstcMachine:
             self.know.changed = False
             yield (_WAKE, self.now + 1)
         yield from self._cover(root)
-        yield from self._watch()
+        yield from watch(self)
         return None
 
     def _cover(self, root: Cell) -> Flow:
@@ -202,40 +203,59 @@ class OrmstcMachine:
         tree edge is crossed (into a child, or back to the parent: lines 18-20). The walk
         ends on re-entering ``root`` at a sub-cell whose side is already decided.
         """
-        pos = self.pos
+        # walk.cell_of / side_of / successor inlined: this loop runs once per move
+        decided, edges = self.decided, self.edges
+        mine, obstacle = self.mine, self.know.obstacle
+        r, c = self.pos
         while True:
-            cell = cell_of(pos)
-            side = side_of(pos)
-            if not self.decided.get(cell, 0) >> side & 1:
-                yield from self._decide(cell, side)
-            nxt = successor(pos, self._has_edge)
+            cell = (r >> 1, c >> 1)
+            side = SIDE_AT[(r & 1) << 1 | (c & 1)]
+            bits = decided.get(cell, 0)
+            if not bits >> side & 1:
+                dr, dc = DELTA[side]
+                other = (cell[0] + dr, cell[1] + dc)
+                if other in mine or other in obstacle:
+                    decided[cell] = bits | 1 << side  # _decide's first exit, without a frame
+                else:
+                    yield from self._decide(cell, side)
+            go = side if edges.get(cell, 0) >> side & 1 else (side + 1) & 3
+            dr, dc = DELTA[go]
+            nxt = (r + dr, c + dc)
             result = yield (_ANSWER, Move(nxt))
             if result.__class__ is MoveResult and result.ok:
-                self._moved(nxt)
+                self._heading = go
+                self.pos = nxt
+                self.moves += 1
             else:
                 self.bumps += 1
                 yield (_UNTIL, self.now + self._backoff())
                 yield from self._move_to(nxt)
-            pos = nxt
-            if cell_of(pos) == root and self.decided.get(root, 0) >> side_of(pos) & 1:
+            r, c = nxt
+            if ((r >> 1, c >> 1) == root
+                    and decided.get(root, 0) >> SIDE_AT[(r & 1) << 1 | (c & 1)] & 1):
                 return None
 
     def _decide(self, cell: Cell, side: int) -> Flow:
         """Lines 3-17 for the neighbour on ``side``: skip, connect, or grow into it."""
-        self._mark_decided(cell, side)
-        other = neighbour(cell, side)
+        self.decided[cell] = self.decided.get(cell, 0) | 1 << side
+        dr, dc = DELTA[side]
+        other = (cell[0] + dr, cell[1] + dc)
         know = self.know
         if other in self.mine or other in know.obstacle:
             return None
-        holder = know.live_owner(other)
-        if holder is not None:
-            alive = yield from self._ask_alive(holder)
-            if alive:
-                self._connect(holder, cell, other)
-                return None
-        for robot in know.dead_owners(other):
-            self._release(robot)  # lines 12-14: a dead robot's cell is empty again
-        status = yield from self._sense(cell, side, other)
+        instant = self.instant
+        if other in know.owners:
+            holder = know.live_owner(other)
+            if holder is not None:
+                alive = (self._alive_now(holder, instant) if instant is not None
+                         else (yield from self._ask_alive(holder)))
+                if alive:
+                    self._connect(holder, cell, other)
+                    return None
+            for robot in know.dead_owners(other):
+                self._release(robot)  # lines 12-14: a dead robot's cell is empty again
+        status = (self._sense_now(cell, side, other, instant) if instant is not None
+                  else (yield from self._sense(cell, side, other)))
         if status is CellStatus.OBSTACLE:
             return None
         if status is CellStatus.ROBOT:
@@ -246,7 +266,8 @@ class OrmstcMachine:
         won = yield from self._claim(cell, other)
         if won and know.was_owned(other):
             # its owner may have died inside it while we waited: look again before entering
-            status = yield from self._sense(cell, side, other)
+            status = (self._sense_now(cell, side, other, instant) if instant is not None
+                      else (yield from self._sense(cell, side, other)))
             won = status is CellStatus.FREE
         if won:
             self._grow(cell, side)
@@ -256,8 +277,9 @@ class OrmstcMachine:
 
     def _claim(self, cell: Cell, target: Cell) -> Flow:
         know = self.know
-        know.claims.hear(target, self.me, len(self.mine), self.now)
-        self._send(ClaimMsg(self.me, target, len(self.mine)))
+        covered = len(self.mine)
+        know.claims.hear(target, self.me, covered, self.now)
+        self._out.append(Broadcast(ClaimMsg(self.me, target, covered)))
         yield (_UNTIL, self.now + self.config.claim_wait)
         outcome = know.claims.decide(target, self.me, know.live_owner(target), know.dead,
                                      self.now)
@@ -266,14 +288,16 @@ class OrmstcMachine:
         return outcome.won
 
     def _grow(self, cell: Cell, side: int) -> None:
-        child = neighbour(cell, side)
+        dr, dc = DELTA[side]
+        child = (cell[0] + dr, cell[1] + dc)
         self._take(child)
-        self.edges[cell] = self.edges.get(cell, 0) | 1 << side
-        back = (side + 2) % 4
-        self.edges[child] = self.edges.get(child, 0) | 1 << back
-        self._mark_decided(child, back)
-        self.know.claims.settle(child)
-        self._send(TreeEdgeMsg(self.me, cell, child))
+        edges = self.edges
+        edges[cell] = edges.get(cell, 0) | 1 << side
+        back = (side + 2) & 3
+        edges[child] = edges.get(child, 0) | 1 << back
+        self.decided[child] = self.decided.get(child, 0) | 1 << back
+        self.know.claims.pending.pop(child, None)  # claims.settle
+        self._out.append(Broadcast(TreeEdgeMsg(self.me, cell, child)))
 
     def _take(self, cell: Cell) -> None:
         self.mine.add(cell)
@@ -293,34 +317,43 @@ class OrmstcMachine:
             know.released.add(robot)
             self._send(DeadRobotMsg(self.me, robot))
 
-    def _mark_decided(self, cell: Cell, side: int) -> None:
-        self.decided[cell] = self.decided.get(cell, 0) | 1 << side
-
     def _has_edge(self, cell: Cell, side: int) -> bool:
         return bool(self.edges.get(cell, 0) >> side & 1)
 
     # ---- sensing, moving, liveness ----
 
     def _sense(self, cell: Cell, side: int, target: Cell) -> Flow:
-        know = self.know
-        fresh = know.was_owned(target)  # a robot may have died there since
-        if not fresh and target in know.free:
+        if target not in self.know.owners and target in self.know.free:
+            return CellStatus.FREE  # static and never owned: nobody can have died there
+        cells, turn = self._look(cell, side, target)
+        result = yield (_ANSWER, Sense(cells, turn))
+        return self._sensed(target, result.statuses if isinstance(result, SenseResult) else ())
+
+    def _sense_now(self, cell: Cell, side: int, target: Cell,
+                   instant: InstantAnswers) -> CellStatus:
+        """``_sense`` answered by ``instant``, without a generator frame."""
+        if target not in self.know.owners and target in self.know.free:
             return CellStatus.FREE
+        cells = self._look(cell, side, target)[0]
+        look = instant.cell_status
+        return self._sensed(target, [(c, look(c)) for c in cells])
+
+    def _look(self, cell: Cell, side: int, target: Cell) -> tuple[tuple[Cell, ...], bool]:
+        """The cells to sense for ``target`` and whether the robot must turn to see it."""
         if self.config.sense_mode is SenseMode.SINGLE:
-            cells: tuple[Cell, ...] = (target,)
             turn = self._heading != side
             if turn:
                 self.sense_turns += 2  # turn towards the cell and back (paper's 3 steps)
-        else:
-            cells = (target, *know.unknown_around(cell, target, self.mine))
-            turn = False
-        result = yield (_ANSWER, Sense(cells, turn))
+            return (target,), turn
+        return (target, *self.know.unknown_around(cell, target, self.mine)), False
+
+    def _sensed(self, target: Cell, statuses: Iterable[tuple[Cell, CellStatus]]) -> CellStatus:
         status = CellStatus.OBSTACLE
-        if isinstance(result, SenseResult):
-            for sensed, value in result.statuses:
-                know.note_sensed(sensed, value)
-                if sensed == target:
-                    status = value
+        note = self.know.note_sensed
+        for sensed, value in statuses:
+            note(sensed, value)
+            if sensed == target:
+                status = value
         return status
 
     def _move_to(self, to: SubCell) -> Flow:
@@ -333,8 +366,7 @@ class OrmstcMachine:
             yield (_UNTIL, self.now + self._backoff())
 
     def _moved(self, to: SubCell) -> None:
-        delta = (to[0] - self.pos[0], to[1] - self.pos[1])
-        self._heading = DELTA.index(delta) if delta in DELTA else None
+        self._heading = _HEADING.get((to[0] - self.pos[0], to[1] - self.pos[1]))
         self.pos = to
         self.moves += 1
 
@@ -343,6 +375,8 @@ class OrmstcMachine:
         return self.config.bump_backoff * (1.0 + self._rng.random())
 
     def _ask_alive(self, robot: int) -> Flow:
+        if self.instant is not None:
+            return self._alive_now(robot, self.instant)
         if robot in self.know.dead:
             return False
         result = yield (_ANSWER, IsAlive(robot))
@@ -351,75 +385,14 @@ class OrmstcMachine:
             self.know.mark_dead(robot)
         return alive
 
-    # ---- lines 21-36: completion, watching, takeover ----
-
-    def _watch(self) -> Flow:
-        know, table = self.know, self.connections
-        next_poll = self.now
-        while True:
-            know.changed = False
-            targets, retry_at = table.targets(know, self.mine, self.now, self._mission_over())
-            if not targets:
-                if not self.finished:
-                    self.finished = True
-                    know.completed.add(self.me)
-                    self._send(CompletionMsg(self.me, len(self.mine)))
-                self.idle = retry_at == math.inf
-                if self.idle and self._mission_over() and not self.done_sent:
-                    self.done_sent = True
-                    self._out.append(Done(self.now))
-                if self.now >= next_poll:
-                    next_poll = self.now + self.config.watch_interval
-                    for robot in sorted(table.holders() - know.dead):
-                        yield from self._ask_alive(robot)
-                    continue
-                yield (_WAKE, min(next_poll, retry_at))
-                continue
-            self.idle = False
-            self.done_sent = False
-            if self.finished:
-                self.finished = False
-                know.completed.discard(self.me)
-                self._send(WithdrawalMsg(self.me, table.links[targets[0]]))
-            for link in targets:
-                if table.links[link] in know.dead:
-                    self._release(table.links[link])
-            yield from self._take_over(self._closest(targets))
-
-    def _mission_over(self) -> bool:
-        return self.finished and self.know.peers_settled()
-
-    def _closest(self, targets: list[Link]) -> Link:
-        """The target reached soonest walking either way round the own tree (line 29)."""
-        n = 4 * len(self.mine)
-        index = walk_index(self.pos, self._has_edge, n)
-
-        def distance(link: Link) -> int:
-            ahead = index.get(sub_facing(link[0], side_towards(*link)), 0)
-            return min(ahead, n - ahead)
-
-        return min(targets, key=distance)
-
-    def _take_over(self, link: Link) -> Flow:
-        """Lines 30-36: walk to my side of the connection and grow into the freed cell."""
-        mine, theirs = link
-        side = side_towards(mine, theirs)
-        yield from self._walk_to(sub_facing(mine, side))
-        self.connections.drop(link)
-        self.decided[mine] = self.decided.get(mine, 0) & ~(1 << side)
-        yield from self._decide(mine, side)
-        if self._has_edge(mine, side):
-            self.takeovers += 1
-            yield from self._cover(mine)
-        return None
-
-    def _walk_to(self, target: SubCell) -> Flow:
-        n = 4 * len(self.mine)
-        ahead = walk_index(self.pos, self._has_edge, n).get(target, 0)
-        step = successor if ahead <= n - ahead else predecessor
-        while self.pos != target:
-            yield from self._move_to(step(self.pos, self._has_edge))
-        return None
+    def _alive_now(self, robot: int, instant: InstantAnswers) -> bool:
+        """``_ask_alive`` answered by ``instant``, without a generator frame."""
+        if robot in self.know.dead:
+            return False
+        alive = instant.is_alive(robot)
+        if not alive:
+            self.know.mark_dead(robot)
+        return alive
 
 
 def initial_arrival(start: SubCell) -> Cell:

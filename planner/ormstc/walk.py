@@ -18,6 +18,8 @@ DELTA: tuple[tuple[int, int], ...] = ((-1, 0), (0, -1), (1, 0), (0, 1))
 # side faced by the sub-cell at (row % 2, col % 2)
 _SIDE = {(0, 0): WEST, (1, 0): SOUTH, (1, 1): EAST, (0, 1): NORTH}
 _SUB_OF_SIDE = {side: offset for offset, side in _SIDE.items()}
+# the same, indexed by (row % 2) * 2 + col % 2: for loops that cannot afford a tuple and a hash
+SIDE_AT: tuple[int, ...] = tuple(_SIDE[(i >> 1, i & 1)] for i in range(4))
 
 EdgeTest = Callable[[Cell, int], bool]
 

@@ -1,0 +1,99 @@
+"""Alg. 2 lines 21-36 for an OrmstcMachine: announce completion, watch, take over.
+
+Back on its start the robot broadcasts completion, then watches: every ``watch_interval`` it
+asks whether each robot it has a connection with is alive, and it reacts at once to news of
+deaths, completions and withdrawals. A connection into a cell no live robot holds is a
+target: the robot withdraws its completion, walks round its own tree to the nearest target
+(line 29) and runs the DFS from there.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+from planner.ormstc.connections import Link
+from planner.ormstc.types import CompletionMsg, Done, SubCell, WithdrawalMsg
+from planner.ormstc.walk import predecessor, side_towards, sub_facing, successor, walk_index
+
+if TYPE_CHECKING:
+    from planner.ormstc.machine import Flow, OrmstcMachine
+
+_WAKE = 2  # machine._WAKE: wait until a time or until the knowledge changes
+
+
+def watch(m: OrmstcMachine) -> Flow:
+    """Lines 21-36, forever: the machine stays here once its first DFS is over."""
+    know, table = m.know, m.connections
+    next_poll = m.now
+    while True:
+        know.changed = False
+        targets, retry_at = table.targets(know, m.mine, m.now, mission_over(m))
+        if not targets:
+            if not m.finished:
+                m.finished = True
+                know.completed.add(m.me)
+                m._send(CompletionMsg(m.me, len(m.mine)))
+            m.idle = retry_at == math.inf
+            if m.idle and mission_over(m) and not m.done_sent:
+                m.done_sent = True
+                m._out.append(Done(m.now))
+            if m.now >= next_poll:
+                next_poll = m.now + m.config.watch_interval
+                for robot in sorted(table.holders() - know.dead):
+                    if m.instant is not None:
+                        m._alive_now(robot, m.instant)
+                    else:
+                        yield from m._ask_alive(robot)
+                continue
+            yield (_WAKE, min(next_poll, retry_at))
+            continue
+        m.idle = False
+        m.done_sent = False
+        if m.finished:
+            m.finished = False
+            know.completed.discard(m.me)
+            m._send(WithdrawalMsg(m.me, table.links[targets[0]]))
+        for link in targets:
+            if table.links[link] in know.dead:
+                m._release(table.links[link])
+        yield from take_over(m, closest(m, targets))
+
+
+def mission_over(m: OrmstcMachine) -> bool:
+    return m.finished and m.know.peers_settled()
+
+
+def closest(m: OrmstcMachine, targets: list[Link]) -> Link:
+    """The target reached soonest walking either way round the own tree (line 29)."""
+    n = 4 * len(m.mine)
+    index = walk_index(m.pos, m._has_edge, n)
+
+    def distance(link: Link) -> int:
+        ahead = index.get(sub_facing(link[0], side_towards(*link)), 0)
+        return min(ahead, n - ahead)
+
+    return min(targets, key=distance)
+
+
+def take_over(m: OrmstcMachine, link: Link) -> Flow:
+    """Lines 30-36: walk to my side of the connection and grow into the freed cell."""
+    mine, theirs = link
+    side = side_towards(mine, theirs)
+    yield from walk_to(m, sub_facing(mine, side))
+    m.connections.drop(link)
+    m.decided[mine] = m.decided.get(mine, 0) & ~(1 << side)
+    yield from m._decide(mine, side)
+    if m._has_edge(mine, side):
+        m.takeovers += 1
+        yield from m._cover(mine)
+    return None
+
+
+def walk_to(m: OrmstcMachine, target: SubCell) -> Flow:
+    n = 4 * len(m.mine)
+    ahead = walk_index(m.pos, m._has_edge, n).get(target, 0)
+    step = successor if ahead <= n - ahead else predecessor
+    while m.pos != target:
+        yield from m._move_to(step(m.pos, m._has_edge))
+    return None
