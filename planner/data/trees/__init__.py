@@ -1,0 +1,1 @@
+"""Sample tree environments for connected tree coverage (``*.tree`` files)."""
