@@ -108,4 +108,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # `python -m deploy.cli` runs this file as __main__, a second copy of the module whose
+    # UsageError is not the one the commands raise: dispatch through the real module.
+    sys.exit(importlib.import_module("deploy.cli").main())

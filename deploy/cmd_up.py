@@ -18,6 +18,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from bus.argtypes import positive, positive_int, time_scale
 from bus.config import DEFAULT_ENDPOINT, DEFAULT_LEASE_MS
 from deploy.cli import UsageError
 from deploy.fleet import (
@@ -28,15 +29,14 @@ from deploy.fleet import (
     unique_mission,
 )
 from deploy.summary import reachable_sub_cells
-from planner.grid import coarsen, validate_starts, work_area
+from planner.grid import cell_of, coarsen, validate_starts, work_area
 from planner.maps import resolve_world
 from planner.pipeline import make_plan
 from planner.placement import parse_starts, random_starts
-from planner.trees import build_tree
+from planner.trees import ALL_TREE_KINDS, build_tree
 from planner.types import BoolArray, OccupancyGrid, SubCell
 
 ALGOS = ("nb", "bt", "opt", "ormstc")
-TREES = ("dfs", "bfs", "random", "kruskal")
 # 40 simulated seconds per wall second: a forward step (1.93 s simulated) takes ~50 ms, so
 # coverage visibly grows, and the office demo (6 robots, one killed: ~330 moves of ~2.5
 # simulated seconds for the robot that takes over) ends in about 25 s of wall time.
@@ -134,57 +134,32 @@ class MissionSetup:
             # The agents plan the same way (agent/plan.py); here it gives the planned
             # makespan and rejects unplannable missions before any process starts.
             area = work_area(grid, starts)
-            planned = make_plan(area, build_tree(area.cells, args.tree, seed=args.seed),
-                                args.algo).makespan
+            tree = build_tree(area.cells, args.tree, seed=args.seed,
+                              starts=[cell_of(s) for s in starts])
+            planned = make_plan(area, tree, args.algo).makespan
         return cls(world=args.world, cell_size=args.cell_size, grid=grid, starts=starts,
                    algo=args.algo, tree=args.tree, seed=args.seed, time_scale=args.time_scale,
                    reachable=reachable_sub_cells(grid, starts),
                    planned_makespan=planned)
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
-    return value
-
-
-def _scale(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if math.isnan(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"time scale must be >= 0, got {text!r}")
-    return value
-
-
-def _count(text: str) -> int:
-    if not text.isdigit() or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return int(text)
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("-n", "--robots", type=_count, required=True, metavar="K",
+    parser.add_argument("-n", "--robots", type=positive_int, required=True, metavar="K",
                         help="number of robots (agent processes)")
     parser.add_argument("--world", default="office", metavar="FILE|NAME",
                         help="builtin world name or map file (default office)")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
                         help="offline MSTC variant the agents run, or ormstc (on-line; "
                              "its agents read no map) (default opt)")
-    parser.add_argument("--tree", choices=TREES, default="dfs",
+    parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
                         help="spanning tree kind (default dfs)")
-    parser.add_argument("--cell-size", type=_count, default=None, metavar="PX",
+    parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
                         help="map pixels per sub-cell side (default 1)")
     parser.add_argument("--starts", metavar="'r,c;r,c;...'",
                         help="robot start sub-cells (default: random, from --seed)")
     parser.add_argument("--seed", type=int, default=0,
                         help="seed of random starts and of the tree (default 0)")
-    parser.add_argument("--time-scale", type=_scale, default=DEFAULT_TIME_SCALE, metavar="X",
+    parser.add_argument("--time-scale", type=time_scale, default=DEFAULT_TIME_SCALE, metavar="X",
                         help="simulated seconds per wall second; 0 = as fast as possible "
                              "(default %(default)s)")
     parser.add_argument("--kill", action="append", default=[], metavar="ID@WHEN",
@@ -208,16 +183,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"Zenoh transport lease of every process (default "
                              f"{DEFAULT_LEASE_MS}, {CROWDED_LEASE_MS} with more than "
                              f"{CROWDED_AGENTS_PER_CORE} agents per CPU core)")
-    parser.add_argument("--stall-timeout", type=_positive, default=None, metavar="S",
+    parser.add_argument("--stall-timeout", type=positive, default=None, metavar="S",
                         help=f"fail if coverage does not grow for S wall seconds (default "
                              f"{DEFAULT_STALL_S:g} s plus the wall time of {STALL_MOVES} moves)")
-    parser.add_argument("--start-timeout", type=_positive, default=None, metavar="S",
+    parser.add_argument("--start-timeout", type=positive, default=None, metavar="S",
                         help="fail if the agents are not all up after S wall seconds "
                              "(default 30 + 1 per robot)")
-    parser.add_argument("--linger", type=_positive, default=3.0, metavar="S",
+    parser.add_argument("--linger", type=positive, default=3.0, metavar="S",
                         help="after full coverage, wait up to S s for agents to report "
                              "completion (default %(default)s)")
-    parser.add_argument("--dead-after", type=_positive, default=None, metavar="S",
+    parser.add_argument("--dead-after", type=positive, default=None, metavar="S",
                         help=f"agents declare a robot dead after S s without its heartbeat "
                              f"(default {DEFAULT_DEAD_AFTER_S:g}, {CROWDED_DEAD_AFTER_S:g} with "
                              f"more than {CROWDED_AGENTS_PER_CORE} agents per CPU core)")
@@ -227,6 +202,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="extra argument for simhw, e.g. --simhw-arg=--odometry-noise=0.05")
     parser.add_argument("--plain", action="store_true",
                         help="plain progress lines even on a terminal")
+    parser.add_argument("--record", type=Path, default=None, metavar="FILE",
+                        help="record every message of the mission to FILE (JSON Lines; "
+                             "see mstc replay and mstc report)")
 
 
 def check_kills(args: argparse.Namespace) -> list[KillOrder]:
@@ -279,6 +257,8 @@ def _run(args: argparse.Namespace) -> int:
     from deploy.launch import launch
 
     orders = check_kills(args)
+    if args.record is not None and not args.record.parent.is_dir():
+        raise UsageError(f"--record {args.record}: directory {args.record.parent} does not exist")
     args.stall_timeout = stall_timeout(args)
     liveness_defaults(args)
     setup = MissionSetup.from_args(args)  # loads the map and plans: user mistakes stop here
@@ -286,4 +266,11 @@ def _run(args: argparse.Namespace) -> int:
     mission = args.mission or unique_mission()
     run_dir = args.run_dir or default_run_dir(mission)
     started = time.monotonic()
-    return asyncio.run(launch(setup, orders, endpoint, mission, Path(run_dir), args, started))
+    main = launch(setup, orders, endpoint, mission, Path(run_dir), args, started)
+    if args.record is None:
+        return asyncio.run(main)
+    from bus.config import ConnectionSettings
+    from deploy.monitor.app import recorded
+
+    settings = ConnectionSettings(connect=(endpoint,), mission=mission, lease_ms=args.lease_ms)
+    return asyncio.run(recorded(main, settings, args.record))

@@ -1,0 +1,95 @@
+"""``mstc monitor``: watch a mission live from the wire (rich view, or one line per event).
+
+Exit codes: 0 when stopped (Ctrl-C, --duration, or the mission settled with
+--exit-when-done); 2 for usage or connection mistakes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import math
+import signal
+import sys
+from pathlib import Path
+
+from bus.config import add_connection_arguments, settings_from_args
+from bus.errors import BusError
+from deploy.cli import UsageError
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--plain", action="store_true",
+                        help="one line per event instead of the live view (also when stdout "
+                             "is not a terminal)")
+    parser.add_argument("--record", type=Path, default=None, metavar="FILE",
+                        help="write every message to FILE as JSON Lines (see docs/protocol.md)")
+    parser.add_argument("--duration", type=_positive, default=None, metavar="S",
+                        help="stop after S seconds")
+    parser.add_argument("--exit-when-done", action="store_true",
+                        help="stop once the mission has a verdict and every robot is done, "
+                             "dead or gone")
+    parser.add_argument("--world-period", type=_positive, default=2.0, metavar="S",
+                        help="re-query the world and the robots' state every S seconds "
+                             "(default %(default)s)")
+    add_connection_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        return _run(args)
+    except UsageError as error:
+        # Caught here too: under "python -m deploy.cli" the dispatcher's UsageError is another
+        # class object than the one deploy.cli exports to us.
+        print(f"mstc monitor: error: {error}", file=sys.stderr)
+        return 2
+
+
+def _run(args: argparse.Namespace) -> int:
+    from deploy.monitor.app import PlainScreen, RichScreen, Screen, Watcher, watch_live
+
+    try:
+        settings = settings_from_args(args)
+    except BusError as error:
+        raise UsageError(str(error)) from error
+    if args.record is not None and not args.record.parent.is_dir():
+        raise UsageError(f"--record {args.record}: directory {args.record.parent} does not exist")
+    screen: Screen = PlainScreen() if args.plain or not sys.stdout.isatty() else RichScreen()
+    watcher = Watcher(screen)
+
+    async def main() -> None:
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        task = asyncio.current_task()
+
+        def on_signal() -> None:
+            # Still waiting for the router: nothing to show or flush, just give up.
+            if not watcher.connected and task is not None:
+                task.cancel()
+            stop.set()
+
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                loop.add_signal_handler(sig, on_signal)
+        await watch_live(settings, watcher, stop=stop, duration=args.duration,
+                         until_settled=args.exit_when_done, world_period=args.world_period,
+                         record=args.record)
+
+    try:
+        asyncio.run(main())
+    except BusError as error:
+        raise UsageError(str(error)) from error
+    except asyncio.CancelledError:
+        return 130
+    return 0

@@ -1,0 +1,222 @@
+"""Driving the model: live from the wire (``mstc monitor``, ``mstc up --record``) or from a
+recording (``mstc replay``), into a screen (rich live view or plain lines) and a recorder."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Awaitable, Callable, Iterable
+from pathlib import Path
+from typing import Protocol, TypeVar
+
+from rich.console import Console, RenderableType
+from rich.live import Live
+
+from bus.bridge import Bus
+from bus.config import ConnectionSettings, open_session_async
+from bus.messages import SCHEMA_VERSION
+from deploy.monitor.live import LiveFeed, poll
+from deploy.monitor.model import FleetModel
+from deploy.monitor.plain import PlainPrinter
+from deploy.monitor.recorder import RecordWriter
+from deploy.monitor.types import Header, MonitorEvent, Record, Recording
+from deploy.monitor.view import FeedStats, render
+
+T = TypeVar("T")
+TICK_S = 0.05
+REFRESH_S = 0.25
+WORLD_PERIOD_S = 2.0
+RENDER_SHARE = 5.0
+
+
+class Screen(Protocol):
+    def events(self, events: list[MonitorEvent]) -> None: ...
+
+    def refresh(self, model: FleetModel, stats: FeedStats) -> None: ...
+
+    def close(self, model: FleetModel, stats: FeedStats) -> None: ...
+
+
+class PlainScreen:
+    """One line per event, a summary line at the end."""
+
+    def __init__(self, printer: PlainPrinter | None = None) -> None:
+        self.printer = printer or PlainPrinter()
+
+    def events(self, events: list[MonitorEvent]) -> None:
+        self.printer.events(events)
+
+    def refresh(self, model: FleetModel, stats: FeedStats) -> None:
+        return None
+
+    def close(self, model: FleetModel, stats: FeedStats) -> None:
+        self.printer.final(model, stats.dropped)
+
+
+class NullScreen:
+    """No output: a recorder only (``mstc up --record``)."""
+
+    def events(self, events: list[MonitorEvent]) -> None:
+        return None
+
+    def refresh(self, model: FleetModel, stats: FeedStats) -> None:
+        return None
+
+    def close(self, model: FleetModel, stats: FeedStats) -> None:
+        return None
+
+
+class RichScreen:
+    """The live view; the last frame stays on the terminal when it closes."""
+
+    def __init__(self, console: Console | None = None) -> None:
+        self.console = console or Console()
+        self._live = Live(console=self.console, auto_refresh=False, transient=True,
+                          screen=False)
+        self._live.start()
+
+    def _frame(self, model: FleetModel, stats: FeedStats) -> RenderableType:
+        return render(model, stats, width=self.console.width, height=self.console.height)
+
+    def events(self, events: list[MonitorEvent]) -> None:
+        return None  # the event log is part of each frame
+
+    def refresh(self, model: FleetModel, stats: FeedStats) -> None:
+        self._live.update(self._frame(model, stats), refresh=True)
+
+    def close(self, model: FleetModel, stats: FeedStats) -> None:
+        self._live.stop()
+        self.console.print(self._frame(model, stats))
+
+
+class RateMeter:
+    """Messages per second over the last second or so."""
+
+    def __init__(self) -> None:
+        self._last: tuple[float, int] | None = None
+        self.rate = 0.0
+
+    def update(self, now: float, total: int) -> float:
+        if self._last is None:
+            self._last = (now, total)
+        elif now - self._last[0] >= 1.0:
+            self.rate = (total - self._last[1]) / (now - self._last[0])
+            self._last = (now, total)
+        return self.rate
+
+
+class Watcher:
+    """Model + screen + optional recorder, fed with records."""
+
+    def __init__(self, screen: Screen, recorder: RecordWriter | None = None,
+                 model: FleetModel | None = None) -> None:
+        self.model = model or FleetModel()
+        self.screen = screen
+        self.recorder = recorder
+        self.connected = False
+
+    def feed(self, records: Iterable[Record]) -> None:
+        for record in records:
+            events = self.model.apply(record)
+            if self.recorder is not None:
+                self.recorder.write(record)
+            if events:
+                self.screen.events(events)
+
+    def settled(self) -> bool:
+        """The mission has a final verdict and every robot is done, dead or gone."""
+        model = self.model
+        return model.mission is not None and model.mission.state != "running" and all(
+            v.done or v.dead or v.left for v in model.robots.values())
+
+
+async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
+                     stop: asyncio.Event | None = None, duration: float | None = None,
+                     until_settled: bool = False, world_period: float = WORLD_PERIOD_S,
+                     record: Path | None = None, source: str = "monitor") -> FeedStats:
+    """Watch ``settings.mission`` until ``stop``, ``duration`` or (optionally) the end of
+    the mission; the final state and world are queried once more before returning."""
+    stop = stop or asyncio.Event()
+    async with open_session_async(settings) as session, Bus(session, settings.mission) as bus:
+        watcher.connected = True
+        feed = LiveFeed(bus)
+        if record is not None:
+            watcher.recorder = RecordWriter(record, Header(
+                settings.mission, time.time(), source, SCHEMA_VERSION))
+        feed.start()
+        try:
+            return await _loop(feed, watcher, stop, duration, until_settled, world_period)
+        finally:
+            if watcher.recorder is not None:
+                watcher.recorder.close()
+
+
+async def recorded(main: Awaitable[T], settings: ConnectionSettings, path: Path,
+                   source: str = "up") -> T:
+    """Await ``main`` (a launcher) with a recorder of ``settings.mission`` beside it; the
+    recording ends when ``main`` does (at once if the router never came up)."""
+    stop, watcher = asyncio.Event(), Watcher(NullScreen())
+    async with asyncio.TaskGroup() as group:
+        recorder = group.create_task(watch_live(settings, watcher, stop=stop, record=path,
+                                                source=source))
+        try:
+            return await main
+        finally:
+            stop.set()
+            if not watcher.connected:
+                recorder.cancel()
+
+
+async def _loop(feed: LiveFeed, watcher: Watcher, stop: asyncio.Event,
+                duration: float | None, until_settled: bool, world_period: float) -> FeedStats:
+    meter, next_refresh = RateMeter(), 0.0
+    async with asyncio.TaskGroup() as group:
+        poller = group.create_task(poll(feed, world_period))
+        try:
+            while not stop.is_set():
+                watcher.feed(feed.drain())
+                now = feed.clock()
+                if now >= next_refresh:
+                    meter.update(now, watcher.model.kinds.total())
+                    watcher.screen.refresh(watcher.model, feed.stats(meter.rate))
+                    if watcher.recorder is not None:
+                        watcher.recorder.flush()
+                    # A big map renders slowly: keep drawing to a fifth of the loop's time.
+                    next_refresh = now + max(REFRESH_S, RENDER_SHARE * (feed.clock() - now))
+                if duration is not None and now - feed.t0 >= duration:
+                    break
+                if until_settled and watcher.settled() and not feed.queue:
+                    break
+                await asyncio.sleep(TICK_S)
+        finally:
+            poller.cancel()
+    await feed.sync()
+    watcher.feed(feed.drain())
+    stats = feed.stats(meter.rate)
+    watcher.screen.close(watcher.model, stats)
+    return stats
+
+
+def replay(recording: Recording, watcher: Watcher, speed: float, *,
+           clock: Callable[[], float] = time.monotonic,
+           sleep: Callable[[float], None] = time.sleep) -> FeedStats:
+    """Play ``recording`` into ``watcher`` at ``speed`` times real time (0: at once)."""
+    drops = {"recording.malformed": len(recording.errors)} if recording.errors else {}
+    meter, start, last = RateMeter(), clock(), -REFRESH_S
+
+    def stats() -> FeedStats:
+        return FeedStats(source=f"replay x{speed:g}" if speed else "replay", rate=meter.rate,
+                         drops=drops)
+
+    first = recording.records[0].t if recording.records else 0.0
+    for record in recording.records:
+        while speed > 0 and (wait := start + (record.t - first) / speed - clock()) > 0:
+            sleep(min(wait, REFRESH_S))
+            now = clock()
+            if now - last >= REFRESH_S:
+                last = now
+                meter.update(now, watcher.model.kinds.total())
+                watcher.screen.refresh(watcher.model, stats())
+        watcher.feed((record,))
+    watcher.screen.close(watcher.model, stats())
+    return stats()

@@ -1,0 +1,216 @@
+"""Recordings: every message a monitor heard, as JSON Lines (docs/protocol.md, "Recording
+schema"). The first line is a header; each further line is one received message with its
+receive time, key, kind and decoded fields. Bytes and non-finite floats, which JSON cannot
+hold, are written as ``{"$bytes": base64}`` and ``{"$float": "inf"}``.
+
+Reading re-validates every line with the bus codec (the fields are packed back into a wire
+payload and decoded strictly), so a recording is exactly as trustworthy as the wire; a line
+that does not decode is reported with its number and skipped.
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import json
+import math
+from pathlib import Path
+from types import TracebackType
+from typing import Any, TextIO
+
+import msgpack
+
+from bus.codec import KIND_FIELD, VERSION_FIELD, decode, decode_any
+from bus.errors import DecodeError
+from bus.messages import MESSAGE_TYPES, SCHEMA_VERSION
+from deploy.cli import UsageError
+from deploy.monitor.types import Header, LineError, Opaque, Record, Recording, TokenChange
+
+SCHEMA = "mstc-record"
+VERSION = 1
+VIAS = ("sub", "query", "token")
+# Recorded lines are re-checked with the codec; a WorldState of a big map exceeds the
+# wire's 64 KiB default only in its JSON form, never on the wire, but be generous.
+_MAX_PAYLOAD = 16 * 1024 * 1024
+
+
+class RecordingError(UsageError):
+    """A recording file that cannot be used at all (missing, not a recording, too new)."""
+
+
+# --- payloads ------------------------------------------------------------------------------
+
+def decode_payload(payload: bytes, max_size: int = _MAX_PAYLOAD) -> Any:
+    """A wire payload as a bus message; an Opaque if it is a well-formed map of the current
+    wire version whose kind this process has no type for; DecodeError otherwise."""
+    try:
+        return decode_any(payload, max_size=max_size)
+    except DecodeError:
+        raw = _unpack(payload)
+        kind = raw.get(KIND_FIELD) if isinstance(raw, dict) else None
+        if not isinstance(raw, dict) or raw.get(VERSION_FIELD) != SCHEMA_VERSION \
+                or not isinstance(kind, str) or kind in MESSAGE_TYPES:
+            raise
+        fields = {str(k): v for k, v in raw.items() if k not in (KIND_FIELD, VERSION_FIELD)}
+        return Opaque(kind, fields)
+
+
+def _unpack(payload: bytes) -> Any:
+    try:
+        return msgpack.unpackb(payload, raw=False, use_list=False, strict_map_key=False)
+    except (ValueError, msgpack.UnpackException) as error:
+        raise DecodeError(f"not msgpack: {error}") from error
+
+
+# --- JSON form ---------------------------------------------------------------------------
+
+def to_json(value: Any) -> Any:
+    """The JSON form of a message field value (see the module doc)."""
+    if isinstance(value, bool) or value is None or isinstance(value, (int, str)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else {"$float": str(value)}
+    if isinstance(value, bytes):
+        return {"$bytes": base64.b64encode(value).decode("ascii")}
+    if isinstance(value, Opaque):
+        return to_json(dict(value.fields))
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: to_json(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, (tuple, list)):
+        return [to_json(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): to_json(v) for k, v in value.items()}
+    raise TypeError(f"cannot record a {type(value).__name__}")
+
+
+def from_json(value: Any) -> Any:
+    """Undo :func:`to_json` (lists stay lists; the codec turns them into tuples)."""
+    if isinstance(value, dict):
+        if len(value) == 1 and "$bytes" in value:
+            return base64.b64decode(value["$bytes"], validate=True)
+        if len(value) == 1 and "$float" in value:
+            return float(value["$float"])
+        return {k: from_json(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [from_json(v) for v in value]
+    return value
+
+
+def record_line(record: Record) -> str:
+    """One JSON line for ``record``."""
+    return json.dumps({"t": round(record.t, 6), "key": record.key, "via": record.via,
+                       "kind": record.kind, "msg": to_json(record.msg)},
+                      separators=(",", ":"), allow_nan=False)
+
+
+def _message(kind: str, fields: dict[str, Any]) -> Any:
+    if kind == TokenChange.KIND:
+        robot, inc, present = (fields.get(n) for n in ("robot", "incarnation", "present"))
+        if type(robot) is not int or type(inc) is not int or type(present) is not bool \
+                or len(fields) != 3:
+            raise DecodeError("token needs exactly robot (int), incarnation (int), "
+                              "present (bool)")
+        return TokenChange(robot, inc, present)
+    cls = MESSAGE_TYPES.get(kind)
+    if cls is None:
+        return Opaque(kind, fields)
+    wire = {KIND_FIELD: kind, VERSION_FIELD: SCHEMA_VERSION, **fields}
+    return decode(msgpack.packb(wire, use_bin_type=True), cls, max_size=_MAX_PAYLOAD)
+
+
+def parse_line(text: str) -> Record:
+    """A record from one JSON line; ValueError (or DecodeError) saying what is wrong."""
+    data = json.loads(text)
+    if not isinstance(data, dict):
+        raise ValueError("not a JSON object")
+    t, key, kind = data.get("t"), data.get("key"), data.get("kind")
+    via, msg = data.get("via", "sub"), data.get("msg")
+    if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
+        raise ValueError(f"'t' must be a finite number, got {t!r}")
+    if not isinstance(key, str) or not isinstance(kind, str):
+        raise ValueError("'key' and 'kind' must be strings")
+    if via not in VIAS:
+        raise ValueError(f"'via' must be one of {VIAS}, got {via!r}")
+    if not isinstance(msg, dict):
+        raise ValueError("'msg' must be a JSON object")
+    return Record(float(t), key, _message(kind, from_json(msg)), via)
+
+
+# --- files -------------------------------------------------------------------------------
+
+def header_line(header: Header) -> str:
+    return json.dumps({"schema": SCHEMA, "version": VERSION,
+                       "wire_version": header.wire_version, "mission": header.mission,
+                       "started": header.started, "source": header.source})
+
+
+def parse_header(text: str, path: Path) -> Header:
+    try:
+        data = json.loads(text)
+    except ValueError:
+        data = None
+    if not isinstance(data, dict) or data.get("schema") != SCHEMA:
+        raise RecordingError(f"{path} is not an mstc recording (its first line is not a "
+                             f"'{SCHEMA}' header)")
+    version, wire = data.get("version"), data.get("wire_version")
+    if not isinstance(version, int) or version > VERSION:
+        raise RecordingError(f"{path} has recording schema version {version!r}; this mstc "
+                             f"reads version {VERSION} and older")
+    if wire != SCHEMA_VERSION:
+        raise RecordingError(f"{path} holds wire schema version {wire!r} messages; this "
+                             f"mstc decodes version {SCHEMA_VERSION}")
+    started = data.get("started")
+    return Header(mission=str(data.get("mission", "")),
+                  started=float(started) if isinstance(started, (int, float)) else 0.0,
+                  source=str(data.get("source", "")), wire_version=wire)
+
+
+def read_recording(path: Path) -> Recording:
+    """Read a whole recording; bad lines are collected (and skipped), not raised."""
+    try:
+        with Path(path).open(encoding="utf-8", errors="replace") as stream:
+            first = stream.readline()
+            header = parse_header(first, Path(path))
+            records: list[Record] = []
+            errors: list[LineError] = []
+            for number, text in enumerate(stream, start=2):
+                if not text.strip():
+                    continue
+                try:
+                    records.append(parse_line(text))
+                except (ValueError, DecodeError, TypeError) as error:
+                    errors.append(LineError(number, str(error)))
+    except OSError as error:
+        raise RecordingError(f"cannot read {path}: {error.strerror or error}") from error
+    return Recording(header, tuple(records), tuple(errors))
+
+
+class RecordWriter:
+    """Appends records to a new JSON Lines file; flushed by :meth:`flush` and on close."""
+
+    def __init__(self, path: Path, header: Header) -> None:
+        self.path = Path(path)
+        self.lines = 0
+        try:
+            self._stream: TextIO = self.path.open("w", encoding="utf-8")
+        except OSError as error:
+            raise RecordingError(f"cannot write {path}: {error.strerror or error}") from error
+        self._stream.write(header_line(header) + "\n")
+
+    def write(self, record: Record) -> None:
+        self._stream.write(record_line(record) + "\n")
+        self.lines += 1
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+    def close(self) -> None:
+        if not self._stream.closed:
+            self._stream.close()
+
+    def __enter__(self) -> RecordWriter:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()

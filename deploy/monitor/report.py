@@ -1,0 +1,295 @@
+"""What a recorded mission achieved, and whether its invariants held, from the record alone.
+
+The records are replayed into the same FleetModel the live view uses; the figures are read
+off it (snapshotting the robots' moves at the instant the last reachable sub-cell was first
+covered). ``to_json`` is the stable form for other tools (schema "mstc-report", version 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from bus import keys
+from deploy.monitor.model import FleetModel
+from deploy.monitor.types import Record, Recording
+
+REPORT_SCHEMA = "mstc-report"
+REPORT_VERSION = 1
+NON_REDUNDANT = ("nb", "ormstc")
+BACKTRACKING = ("bt", "opt")
+# Keys a robot publishes itself (its messages per move); sim/* is simhw's ground truth.
+_ROBOT_KINDS = ("hb", "status", "progress", "event")
+
+
+@dataclass(frozen=True)
+class RobotFigures:
+    robot: int
+    moves: int
+    moves_at_coverage: int | None
+    revisits: int
+    messages: int
+    messages_per_move: float | None
+    dead: bool
+    took_over: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class DeathFigures:
+    robot: int
+    incarnation: int
+    reason: str
+    detected_by: tuple[int | None, ...]
+    t: float
+    since_last_heartbeat: float | None
+    since_token_lost: float | None
+    taken_over_by: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Invariant:
+    name: str
+    status: str  # "ok", "failed" or "skipped"
+    detail: str
+
+
+@dataclass(frozen=True)
+class MissionReport:
+    mission: str
+    algo: str
+    robots: tuple[RobotFigures, ...]
+    reachable: int | None
+    covered: int
+    complete: bool
+    coverage_moves: int | None
+    coverage_sim_seconds: float | None
+    coverage_wall_seconds: float | None
+    sim_seconds: float
+    revisits: int
+    revisited_cells: tuple[tuple[tuple[int, int], tuple[int, ...]], ...]
+    deaths: tuple[DeathFigures, ...]
+    conflicts: tuple[tuple[tuple[int, int], tuple[int, ...], int | None], ...]
+    messages: int
+    malformed_lines: tuple[tuple[int, str], ...]
+    invariants: tuple[Invariant, ...]
+    curve: tuple[tuple[float, float, int], ...]
+
+    @property
+    def coverage(self) -> float | None:
+        return None if not self.reachable else 100.0 * self.covered / self.reachable
+
+    @property
+    def ok(self) -> bool:
+        return all(inv.status != "failed" for inv in self.invariants)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "schema": REPORT_SCHEMA, "version": REPORT_VERSION, "mission": self.mission,
+            "algo": self.algo, "reachable": self.reachable, "covered": self.covered,
+            "coverage_percent": self.coverage, "complete": self.complete,
+            "coverage_moves": self.coverage_moves,
+            "coverage_sim_seconds": self.coverage_sim_seconds,
+            "coverage_wall_seconds": self.coverage_wall_seconds,
+            "sim_seconds": self.sim_seconds, "revisits": self.revisits,
+            "revisited_cells": [{"cell": list(c), "robots": list(r)}
+                                for c, r in self.revisited_cells],
+            "robots": [{"robot": f.robot, "moves": f.moves,
+                        "moves_at_coverage": f.moves_at_coverage, "revisits": f.revisits,
+                        "messages": f.messages, "messages_per_move": f.messages_per_move,
+                        "dead": f.dead, "took_over": list(f.took_over)} for f in self.robots],
+            "deaths": [{"robot": d.robot, "incarnation": d.incarnation, "reason": d.reason,
+                        "detected_by": list(d.detected_by), "t": d.t,
+                        "since_last_heartbeat": d.since_last_heartbeat,
+                        "since_token_lost": d.since_token_lost,
+                        "taken_over_by": list(d.taken_over_by)} for d in self.deaths],
+            "conflicts": [{"cell": list(c), "claimants": list(who), "winner": w}
+                          for c, who, w in self.conflicts],
+            "messages": self.messages,
+            "malformed_lines": [{"line": n, "reason": why} for n, why in self.malformed_lines],
+            "invariants": [{"name": i.name, "status": i.status, "detail": i.detail}
+                           for i in self.invariants],
+            "ok": self.ok,
+            "curve": [{"t": t, "sim_time": s, "covered": c} for t, s, c in self.curve],
+        }
+
+
+def replay_model(records: tuple[Record, ...]) -> tuple[FleetModel, dict[int, int] | None]:
+    """The model after every record, and each robot's moves when coverage completed."""
+    model = FleetModel(max_events=10_000)
+    at_coverage: dict[int, int] | None = None
+    for record in records:
+        model.apply(record)
+        if at_coverage is None and model.cover.complete_at is not None:
+            at_coverage = {r: v.moves for r, v in model.robots.items()}
+    return model, at_coverage
+
+
+def build_report(recording: Recording) -> MissionReport:
+    model, at_coverage = replay_model(recording.records)
+    sent = _messages_by_robot(recording.records)
+    algos = sorted({v.algo for v in model.robots.values() if v.algo})
+    figures = tuple(
+        RobotFigures(robot=v.robot, moves=v.moves,
+                     moves_at_coverage=None if at_coverage is None else at_coverage.get(r, 0),
+                     revisits=v.revisits, messages=sent.get(r, 0),
+                     messages_per_move=round(sent.get(r, 0) / v.moves, 3) if v.moves else None,
+                     dead=v.dead, took_over=tuple(v.took_over))
+        for r, v in sorted(model.robots.items()))
+    first_sim = min((s for _, s, _ in model.cover.curve), default=0.0)
+    complete = model.cover.complete_at
+    return MissionReport(
+        mission=recording.header.mission, algo=",".join(algos) or "unknown", robots=figures,
+        reachable=model.total(), covered=model.covered_count(), complete=complete is not None,
+        coverage_moves=None if at_coverage is None else max(at_coverage.values(), default=0),
+        coverage_sim_seconds=None if complete is None else round(complete[1] - first_sim, 6),
+        coverage_wall_seconds=None if complete is None else round(complete[0], 6),
+        sim_seconds=model.sim_time, revisits=model.revisits(),
+        revisited_cells=tuple((cell, tuple(model.cover.visitors.get(cell, ())))
+                              for cell, n in sorted(model.covered_cells().items()) if n > 1),
+        deaths=_deaths(model), conflicts=_conflicts(model),
+        messages=sum(1 for r in recording.records if r.via == "sub"),
+        malformed_lines=tuple((e.line, e.reason) for e in recording.errors),
+        invariants=check_invariants(model, algos), curve=tuple(model.cover.curve))
+
+
+def _messages_by_robot(records: tuple[Record, ...]) -> dict[int, int]:
+    counts: dict[int, int] = {}
+    for record in records:
+        if record.via != "sub":
+            continue
+        parsed = keys.parse(record.key)
+        if parsed is None:
+            continue
+        if (parsed.kind in _ROBOT_KINDS or parsed.kind.startswith("ormstc/")) \
+                and parsed.robot is not None:
+            sender: int | None = parsed.robot
+        elif parsed.kind == "death":
+            sender = getattr(record.msg, "detected_by", None)
+        else:
+            continue
+        if sender is not None:
+            counts[sender] = counts.get(sender, 0) + 1
+    return counts
+
+
+def _deaths(model: FleetModel) -> tuple[DeathFigures, ...]:
+    out = []
+    for (robot, inc), death in sorted(model.deaths.items()):
+        takers = tuple(sorted({r for _, r, dead in model.takeovers if dead == robot}))
+        out.append(DeathFigures(
+            robot=robot, incarnation=inc, reason=death.notice.reason,
+            detected_by=death.detectors, t=death.t,
+            since_last_heartbeat=None if death.last_heartbeat is None
+            else round(death.t - death.last_heartbeat, 6),
+            since_token_lost=None if death.token_lost is None
+            else round(death.t - death.token_lost, 6),
+            taken_over_by=takers))
+    return tuple(out)
+
+
+def _conflicts(model: FleetModel) -> tuple[tuple[tuple[int, int], tuple[int, ...],
+                                                 int | None], ...]:
+    settled = [(c.cell, c.claimants, c.winner) for c in model.claims.conflicts]
+    return tuple(settled + [(c.cell, c.claimants, None) for c in model.claims.unsettled()])
+
+
+def check_invariants(model: FleetModel, algos: list[str]) -> tuple[Invariant, ...]:
+    return (_all_covered(model), _redundancy(model, algos), _adjacent(model))
+
+
+def _all_covered(model: FleetModel) -> Invariant:
+    name = "every reachable free sub-cell covered"
+    reachable = model.reachable()
+    if reachable is None or not model.cover.visits:
+        return Invariant(name, "skipped", "no world state or ground truth in the record")
+    missing = [(int(r), int(c)) for r, c in zip(*reachable.nonzero(), strict=True)
+               if (int(r), int(c)) not in model.cover.visits]
+    if missing:
+        return Invariant(name, "failed", f"{len(missing)} of {int(reachable.sum())} reachable "
+                                         f"sub-cells never covered, e.g. {missing[:5]}")
+    return Invariant(name, "ok", f"all {int(reachable.sum())} covered")
+
+
+def _redundancy(model: FleetModel, algos: list[str]) -> Invariant:
+    # A robot that died, stopped on an error or left unfinished, or was taken over, is a
+    # failure for coverage: the others walk over covered cells to take over its share.
+    failures = sorted({r for r, v in model.robots.items()
+                       if v.dead or v.ended or (v.left and not v.done)}
+                      | {dead for _, _, dead in model.takeovers if dead is not None})
+    if len(algos) != 1:
+        return Invariant("redundancy", "skipped", f"algorithm unknown or mixed: {algos}")
+    algo = algos[0]
+    if failures:
+        return Invariant("redundancy", "skipped",
+                         f"the run had failures (robots {failures}); takeovers revisit cells")
+    counts = model.covered_cells()
+    if algo in NON_REDUNDANT:
+        twice = sorted(c for c, n in counts.items() if n > 1)
+        if twice:
+            return Invariant(f"no sub-cell covered twice ({algo})", "failed",
+                             f"{len(twice)} sub-cells covered more than once, e.g. "
+                             + _whose(model, twice))
+        return Invariant(f"no sub-cell covered twice ({algo})", "ok", "every sub-cell once")
+    if algo in BACKTRACKING:
+        name = f"at most twice, by the same robot ({algo})"
+        thrice = sorted(c for c, n in counts.items() if n > 2)
+        shared = sorted(c for c, who in model.cover.visitors.items() if len(set(who)) > 1)
+        if thrice or shared:
+            what = [f"{len(thrice)} covered 3+ times"] if thrice else []
+            what += [f"{len(shared)} covered by two robots"] if shared else []
+            return Invariant(name, "failed", f"{', '.join(what)}, e.g. "
+                             + _whose(model, (thrice + shared)))
+        return Invariant(name, "ok", f"{sum(n > 1 for n in counts.values())} sub-cells "
+                                     f"covered twice, each by one robot")
+    return Invariant("redundancy", "skipped", f"no redundancy promise known for {algo!r}")
+
+
+def _whose(model: FleetModel, cells: list[tuple[int, int]]) -> str:
+    return "; ".join(f"{c} by robots {model.cover.visitors.get(c, ['?'])}" for c in cells[:5])
+
+
+def _adjacent(model: FleetModel) -> Invariant:
+    name = "every move 4-adjacent"
+    for r, view in sorted(model.robots.items()):
+        for i, (a, b) in enumerate(zip(view.path, view.path[1:], strict=False)):
+            if abs(a[0] - b[0]) + abs(a[1] - b[1]) != 1:
+                return Invariant(name, "failed", f"robot {r} step {i}: {a} -> {b}")
+    if not any(v.path for v in model.robots.values()):
+        return Invariant(name, "skipped", "no ground-truth walks in the record")
+    return Invariant(name, "ok", f"{sum(v.moves for v in model.robots.values())} moves")
+
+
+def format_report(report: MissionReport) -> str:
+    """The human-readable report."""
+    cov = "unknown" if report.coverage is None else \
+        f"{report.coverage:.1f} % ({report.covered}/{report.reachable})"
+    lines = [f"mission {report.mission} ({report.algo}): coverage {cov}"]
+    if report.complete:
+        lines.append(f"  covered in {report.coverage_moves} moves (makespan), "
+                     f"{report.coverage_sim_seconds:.1f} simulated s, "
+                     f"{report.coverage_wall_seconds:.1f} s after recording started")
+    lines.append(f"  {report.revisits} revisits; {report.messages} messages; "
+                 f"sim time {report.sim_seconds:.1f} s")
+    for f in report.robots:
+        per = "-" if f.messages_per_move is None else f"{f.messages_per_move:.2f}"
+        extra = (" DEAD" if f.dead else "") + \
+            (f" took over {list(f.took_over)}" if f.took_over else "")
+        lines.append(f"  robot {f.robot}: {f.moves} moves, {f.revisits} revisits, "
+                     f"{f.messages} messages ({per}/move){extra}")
+    for c, who in report.revisited_cells[:10]:
+        lines.append(f"  revisited {c} by robots {list(who)}")
+    for d in report.deaths:
+        hb = "-" if d.since_last_heartbeat is None else f"{d.since_last_heartbeat:.3f} s"
+        tok = "-" if d.since_token_lost is None else f"{d.since_token_lost:.3f} s"
+        lines.append(f"  death: robot {d.robot} (life {d.incarnation}) by {list(d.detected_by)}"
+                     f" ({d.reason}), {hb} after its last heartbeat, {tok} after its token "
+                     f"vanished; taken over by {list(d.taken_over_by) or 'nobody'}")
+    for cell, who, winner in report.conflicts:
+        lines.append(f"  conflict over cell {cell}: {list(who)} -> "
+                     f"{'unsettled' if winner is None else f'robot {winner}'}")
+    for number, why in report.malformed_lines:
+        lines.append(f"  malformed line {number} skipped: {why}")
+    for inv in report.invariants:
+        mark = {"ok": "ok     ", "failed": "FAILED ", "skipped": "skipped"}[inv.status]
+        lines.append(f"  [{mark}] {inv.name}: {inv.detail}")
+    return "\n".join(lines)

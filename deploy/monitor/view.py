@@ -1,0 +1,238 @@
+"""The live terminal view: map, side panel and event log, rendered with rich from the model.
+
+The map is drawn per coarse cell, with the spanning-tree edges between cells: a cell is
+``·`` uncovered, ``▒`` partly and ``█`` fully covered in the colour of the robot that covered
+it first (white when the monitor joined late and cannot tell), ``?`` claimed (magenta when
+two robots claim it), ``#`` blocked; robots are arrows in their colour (``✖`` dead, ``○``
+left). A map too big for the terminal is drawn
+every s-th cell without edges.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from rich.console import Group, RenderableType
+from rich.panel import Panel
+from rich.table import Table
+from rich.text import Text
+
+from deploy.monitor.model import FleetModel, RobotView
+from deploy.monitor.plain import format_event
+from deploy.monitor.types import MonitorEvent
+
+PALETTE = ("red", "green", "blue", "magenta", "cyan", "yellow", "bright_red", "bright_green",
+           "bright_blue", "bright_magenta", "bright_cyan", "orange3", "purple", "turquoise2",
+           "gold3", "deep_pink3")
+ARROWS = "▲▶▼◀"
+_EVENT_STYLE = {"died": "bold red", "detected_dead": "red", "takeover": "yellow",
+                "conflict_lost": "magenta", "mission_complete": "bold green",
+                "mission_failed": "bold red", "completed": "green", "withdrawn": "yellow",
+                "fenced": "red"}
+
+
+def colour(robot: int) -> str:
+    return PALETTE[robot % len(PALETTE)]
+
+
+@dataclass(frozen=True)
+class FeedStats:
+    """How the feed is doing (not part of the model: it is about this process)."""
+
+    source: str = "live"
+    rate: float = 0.0  # messages per second, recent
+    drops: dict[str, int] = field(default_factory=dict)  # "kind.reason" -> count
+    queue: int = 0
+    max_queue: int = 0
+
+    @property
+    def dropped(self) -> int:
+        return sum(self.drops.values())
+
+
+def render(model: FleetModel, stats: FeedStats, *, width: int = 120,
+           height: int = 40, log_lines: int = 10) -> RenderableType:
+    """The whole screen for a console of ``width`` x ``height`` characters."""
+    side = side_panel(model, stats)
+    map_w = max(10, width - 52)
+    map_h = max(5, height - log_lines - 4)
+    grid = Table.grid(padding=(0, 1))
+    grid.add_column()
+    grid.add_column(width=48)
+    grid.add_row(Panel(render_map(model, map_w, map_h), title=_title(model)), side)
+    return Group(grid, Panel(event_log(list(model.events)[-log_lines:]), title="events"))
+
+
+def _title(model: FleetModel) -> str:
+    return f"map {model.cover.map_name}" if model.cover.map_name else "map (waiting for the world)"
+
+
+def render_map(model: FleetModel, max_w: int, max_h: int) -> Text:
+    """The map as text no wider than ``max_w`` and no taller than ``max_h``."""
+    shape = _shape(model)
+    if shape is None:
+        return Text("waiting for the world state or coverage...", style="dim")
+    ch, cw = (shape[0] + 1) // 2, (shape[1] + 1) // 2
+    robots = _robots_by_cell(model)
+    if 2 * ch - 1 <= max_h and 2 * cw - 1 <= max_w:
+        return _with_edges(model, ch, cw, robots)
+    step = max(1, math.ceil(max(ch / max_h, cw / max_w)))
+    runs = _Runs()
+    for i in range(0, ch, step):
+        for j in range(0, cw, step):
+            runs.add(*_cell_glyph(model, (i, j), robots))
+        runs.add("\n", "")
+    return runs.text()
+
+
+class _Runs:
+    """Text built from runs of one style: rich renders a Text in time growing with its
+    spans, and a map is mostly long runs of one glyph style."""
+
+    def __init__(self) -> None:
+        self._parts: list[tuple[str, str]] = []
+        self._chars: list[str] = []
+        self._style = ""
+
+    def add(self, chars: str, style: str) -> None:
+        if style != self._style and self._chars:
+            self._parts.append(("".join(self._chars), self._style))
+            self._chars = []
+        self._style = style
+        self._chars.append(chars)
+
+    def text(self) -> Text:
+        if self._chars:
+            self._parts.append(("".join(self._chars), self._style))
+            self._chars = []
+        return Text.assemble(*self._parts)
+
+
+def _with_edges(model: FleetModel, ch: int, cw: int,
+                robots: dict[tuple[int, int], RobotView]) -> Text:
+    runs = _Runs()
+    for i in range(ch):
+        for j in range(cw):
+            runs.add(*_cell_glyph(model, (i, j), robots))
+            if j + 1 < cw:
+                owner = model.edges.get(((i, j), (i, j + 1)))
+                runs.add("─" if owner is not None else " ",
+                         colour(owner) if owner is not None else "")
+        runs.add("\n", "")
+        if i + 1 < ch:
+            for j in range(cw):
+                owner = model.edges.get(((i, j), (i + 1, j)))
+                runs.add("│" if owner is not None else " ",
+                         colour(owner) if owner is not None else "")
+                if j + 1 < cw:
+                    runs.add(" ", "")
+            runs.add("\n", "")
+    return runs.text()
+
+
+def _shape(model: FleetModel) -> tuple[int, int] | None:
+    if model.cover.free is not None:
+        return (int(model.cover.free.shape[0]), int(model.cover.free.shape[1]))
+    cells = list(model.covered_cells()) + [(v.pose[0], v.pose[1])
+                                           for v in model.robots.values() if v.pose]
+    cells += [(2 * r + 1, 2 * c + 1) for r, c in [*model.claims.open, *model.claims.owner]]
+    if not cells:
+        return None
+    return (max(r for r, _ in cells) + 1, max(c for _, c in cells) + 1)
+
+
+def _robots_by_cell(model: FleetModel) -> dict[tuple[int, int], RobotView]:
+    out: dict[tuple[int, int], RobotView] = {}
+    for view in sorted(model.robots.values(), key=lambda v: v.dead):
+        if view.pose is not None:
+            out.setdefault((view.pose[0] // 2, view.pose[1] // 2), view)
+    return out
+
+
+def _cell_glyph(model: FleetModel, cell: tuple[int, int],
+                robots: dict[tuple[int, int], RobotView]) -> tuple[str, str]:
+    view = robots.get(cell)
+    if view is not None and view.pose is not None:
+        if view.dead:
+            return "✖", "bold red"
+        if view.left:
+            return "○", colour(view.robot)
+        return ARROWS[view.pose[2] % 4], f"bold black on {colour(view.robot)}"
+    subs = [(2 * cell[0] + dr, 2 * cell[1] + dc) for dr in (0, 1) for dc in (0, 1)]
+    free = model.cover.free
+    if free is not None and not all(
+            r < free.shape[0] and c < free.shape[1] and free[r, c] for r, c in subs):
+        return "#", "grey37"
+    covered = model.covered_cells()
+    done = [s for s in subs if s in covered]
+    if not done:
+        claimants = model.claims.open.get(cell)
+        if claimants:  # claimed, not entered yet; two claimants are a conflict
+            return "?", "bold magenta" if len(claimants) > 1 else colour(min(claimants))
+        return "·", "grey50"
+    owner = next((model.cover.owner[s] for s in done if s in model.cover.owner), None)
+    style = "white" if owner is None else colour(owner)
+    return ("█" if len(done) == 4 else "▒"), style
+
+
+def side_panel(model: FleetModel, stats: FeedStats) -> RenderableType:
+    """Figures and one row per robot."""
+    figures = Table.grid(padding=(0, 1))
+    figures.add_column(style="bold")
+    figures.add_column()
+    coverage, total = model.coverage(), model.total()
+    covered = model.covered_count()
+    figures.add_row("coverage", f"{coverage:.1f} % ({covered}/{total})"
+                    if coverage is not None else f"{covered} sub-cells (map unknown)")
+    moves = [v.moves for v in model.robots.values()]
+    figures.add_row("moves", f"max {max(moves, default=0)}, total {sum(moves)}")
+    scale = "" if model.time_scale is None else f" (x{model.time_scale:g})"
+    figures.add_row("sim time", f"{model.sim_time:.1f} s{scale}")
+    known, alive, dead, done = model.counts()
+    figures.add_row("robots", f"{known}: {alive} alive, {dead} dead, {done} done")
+    figures.add_row("redundancy", f"{model.revisits()} revisits")
+    figures.add_row("claims", f"{model.claims.claims}, {len(model.claims.conflicts)} "
+                              f"conflicts settled, {len(model.claims.unsettled())} open")
+    figures.add_row("messages", f"{model.kinds.total()} ({stats.rate:.0f}/s)")
+    drops = ", ".join(f"{k} {n}" for k, n in sorted(stats.drops.items())) or "0"
+    invalid = sum(model.invalid.values())
+    figures.add_row("drops", drops + (f", invalid {invalid}" if invalid else ""),
+                    style="red" if stats.dropped or invalid else "")
+    figures.add_row("queue", f"{stats.queue} (max {stats.max_queue})")
+    mission = model.mission.state if model.mission else "running?"
+    figures.add_row("mission", mission, style="green" if mission == "complete" else "")
+    figures.add_row("source", stats.source)
+    return Group(Panel(figures, title="fleet"), Panel(robot_table(model), title="robots"))
+
+
+def robot_table(model: FleetModel) -> Table:
+    table = Table(box=None, pad_edge=False, show_edge=False)
+    for name in ("id", "state", "moves", "pose", "note"):
+        table.add_column(name)
+    for view in sorted(model.robots.values(), key=lambda v: v.robot):
+        pose = "-" if view.pose is None else f"{view.pose[0]},{view.pose[1]}"
+        table.add_row(Text(str(view.robot), style=colour(view.robot)), view.state,
+                      str(view.moves), pose, _note(view),
+                      style="red" if view.dead else "")
+    return table
+
+
+def _note(view: RobotView) -> str:
+    if view.death is not None:
+        by = view.death.detected_by
+        return f"dead ({view.death.reason}, by {'observer' if by is None else by})"
+    if view.failed:
+        return "body failed"
+    if view.token_lost is not None:
+        return "process gone"
+    if view.took_over:
+        return "took over " + ",".join(map(str, view.took_over))
+    return "done" if view.done else ""
+
+
+def event_log(events: list[MonitorEvent]) -> Text:
+    text = Text()
+    for i, event in enumerate(events):
+        text.append(("\n" if i else "") + format_event(event), _EVENT_STYLE.get(event.kind, ""))
+    return text

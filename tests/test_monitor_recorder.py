@@ -1,0 +1,132 @@
+"""Recordings: every message kind survives the JSON round trip; bad lines are reported by
+number and skipped; unusable files are one readable error."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import msgpack
+import pytest
+from test_monitor_fixtures import M, open_room, run_mission, two_robot_walks
+
+from bus import keys
+from bus.codec import encode
+from bus.errors import DecodeError
+from bus.messages import (
+    SCHEMA_VERSION,
+    AdminReply,
+    HwReply,
+    MissionStatus,
+    RobotTruth,
+    make_world_state,
+)
+from deploy.monitor.recorder import (
+    RecordingError,
+    RecordWriter,
+    decode_payload,
+    parse_line,
+    read_recording,
+    record_line,
+)
+from deploy.monitor.types import Header, Opaque, Record
+
+HEADER = Header(M, 1_700_000_000.0, "test", SCHEMA_VERSION)
+
+
+def write(path: Path, records: list[Record]) -> None:
+    with RecordWriter(path, HEADER) as writer:
+        for record in records:
+            writer.write(record)
+
+
+def samples() -> list[Record]:
+    """One of each awkward shape: bytes, nested records, dicts, None, non-finite floats."""
+    import numpy as np
+
+    world = make_world_state("w", np.ones((3, 5), dtype=bool), np.arange(15).reshape(3, 5),
+                             (RobotTruth(0, (1, 2, 3), True, False, False, 4),), 2.5,
+                             math.inf)
+    return [
+        Record(0.5, keys.world(M), world, "query"),
+        Record(0.6, keys.hw_cmd(M, 0), HwReply(7, 0, "ok", "", (1, 1, 0), (0.4, 0.0),
+                                                {"front": None, "left": 2}, False, 1.0)),
+        Record(0.7, keys.hw_admin(M), AdminReply(True, "", {"a": 1, "b": 2.5, "c": "x"})),
+        Record(0.8, keys.mission_status(M), MissionStatus("failed", "why", {"n": -1})),
+        Record(0.9, keys.state(M, 2), Opaque("agent_state", {"robot": 2, "covered": b"\x01",
+                                                             "dead": [1]}), "query"),
+    ]
+
+
+def test_every_scripted_record_round_trips(tmp_path: Path) -> None:
+    records = run_mission(open_room(), two_robot_walks()).records + samples()
+    path = tmp_path / "rec.jsonl"
+    write(path, records)
+    back = read_recording(path)
+    assert back.errors == ()
+    assert back.header == HEADER
+    assert len(back.records) == len(records)
+    for got, sent in zip(back.records, records, strict=True):
+        assert (got.t, got.key, got.via, got.kind) == (sent.t, sent.key, sent.via, sent.kind)
+        if isinstance(sent.msg, Opaque):
+            assert got.msg.fields["covered"] == b"\x01" and list(got.msg.fields["dead"]) == [1]
+        else:
+            assert got.msg == sent.msg
+
+
+def test_lines_are_strict_json(tmp_path: Path) -> None:
+    for record in samples():
+        line = record_line(record)
+        json.loads(line, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+
+
+def test_malformed_lines_are_reported_by_number_and_skipped(tmp_path: Path) -> None:
+    records = run_mission(open_room(), two_robot_walks()).records[:5]
+    path = tmp_path / "rec.jsonl"
+    write(path, records)
+    lines = path.read_text().splitlines()
+    good = json.loads(lines[2])
+    bad_field = dict(good, msg=dict(good["msg"], robot="zero"))
+    lines[1:1] = ["{not json"]                      # line 2
+    lines[3:3] = [json.dumps(bad_field)]            # line 4
+    lines.append(json.dumps({"t": 1.0, "key": "k", "kind": "cover"}))  # no msg
+    path.write_text("\n".join(lines) + "\n")
+    back = read_recording(path)
+    assert [e.line for e in back.errors] == [2, 4, len(lines)]
+    assert "robot" in back.errors[1].reason
+    assert len(back.records) == len(records)
+
+
+@pytest.mark.parametrize("first, needle", [
+    ("", "not an mstc recording"),
+    ('{"schema": "mstc-record", "version": 99, "wire_version": 1}', "version 99"),
+    ('{"schema": "mstc-record", "version": 1, "wire_version": 42}', "wire schema version 42"),
+])
+def test_unusable_files_are_one_readable_error(tmp_path: Path, first: str, needle: str) -> None:
+    path = tmp_path / "x.jsonl"
+    path.write_text(first + "\n")
+    with pytest.raises(RecordingError, match=needle):
+        read_recording(path)
+    with pytest.raises(RecordingError, match="cannot read"):
+        read_recording(tmp_path / "missing.jsonl")
+
+
+def test_unknown_kinds_are_kept_opaque_and_garbage_raises() -> None:
+    raw = msgpack.packb({"_kind": "future_kind", "_v": SCHEMA_VERSION, "x": 1})
+    assert decode_payload(raw) == Opaque("future_kind", {"x": 1})
+    known_but_wrong = msgpack.packb({"_kind": "cover", "_v": SCHEMA_VERSION, "x": 1})
+    for payload in (b"\xc1", known_but_wrong,
+                    msgpack.packb({"_kind": "future_kind", "_v": 99}), msgpack.packb([1])):
+        with pytest.raises(DecodeError):
+            decode_payload(payload)
+    msg = samples()[3].msg
+    assert decode_payload(encode(msg)) == msg
+
+
+def test_parse_line_rejects_bad_envelopes() -> None:
+    for text in ('[]', '{"t": "x", "key": "k", "kind": "cover", "msg": {}}',
+                 '{"t": 1, "key": "k", "kind": "cover", "via": "pigeon", "msg": {}}',
+                 '{"t": 1, "key": "k", "kind": "token", "msg": {"robot": 1}}'):
+        with pytest.raises((ValueError, DecodeError)):
+            parse_line(text)

@@ -1,0 +1,137 @@
+"""The report on scripted recordings: figures against the scripted walks, invariants that
+hold and invariants that fail, the stable JSON form, the PNG and the command."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from test_monitor_fixtures import M, open_room, run_mission, snake, two_robot_walks
+
+from bus.messages import SCHEMA_VERSION
+from deploy.cli import main
+from deploy.monitor.recorder import RecordWriter
+from deploy.monitor.report import build_report
+from deploy.monitor.types import Header, Record, Recording
+
+HEADER = Header(M, 0.0, "test", SCHEMA_VERSION)
+
+
+def report_of(records: list[Record]):  # type: ignore[no-untyped-def]
+    return build_report(Recording(HEADER, tuple(records), ()))
+
+
+def statuses(report) -> dict[str, str]:  # type: ignore[no-untyped-def]
+    return {inv.name.split(" (")[0]: inv.status for inv in report.invariants}
+
+
+def test_figures_of_a_clean_run() -> None:
+    mission = run_mission(open_room(), two_robot_walks())
+    report = report_of(mission.records)
+    assert (report.reachable, report.covered, report.coverage) == (32, 32, 100.0)
+    assert report.complete and report.coverage_moves == 15
+    # The last new sub-cell is entered at step 15, at 2 s per step.
+    assert report.coverage_sim_seconds == pytest.approx(30.0)
+    assert [(f.robot, f.moves, f.revisits) for f in report.robots] == [(0, 15, 0), (1, 15, 0)]
+    # Each robot sent one status, a progress and a heartbeat per step, one completion.
+    assert [f.messages for f in report.robots] == [32, 32]
+    assert report.robots[0].messages_per_move == pytest.approx(32 / 15, abs=1e-3)
+    assert report.ok and set(statuses(report).values()) == {"ok"}
+    assert report.curve[-1][2] == 32 and len(report.curve) == 32
+
+
+def test_backtracking_revisits_by_the_same_robot_are_allowed() -> None:
+    there = snake(range(2), range(4))
+    walks = {0: there + there[-2::-1], 1: snake(range(2, 4), range(4, 8))}
+    report = report_of(run_mission(open_room(), walks, algo="bt").records)
+    assert report.revisits == len(there) - 1
+    assert all(who == (0, 0) for _, who in report.revisited_cells)
+    assert statuses(report)["at most twice, by the same robot"] == "ok"
+    assert statuses(report)["every reachable free sub-cell covered"] == "failed"
+
+
+@pytest.mark.parametrize("algo, name", [("nb", "no sub-cell covered twice"),
+                                        ("bt", "at most twice, by the same robot")])
+def test_a_cell_covered_by_two_robots_fails_the_redundancy_invariant(algo: str,
+                                                                     name: str) -> None:
+    walks = two_robot_walks()
+    walks[1] = [*walks[1], (3, 3)]  # robot 1 steps into robot 0's sub-cell
+    report = report_of(run_mission(open_room(), walks, algo=algo).records)
+    failed = [i for i in report.invariants if i.status == "failed"]
+    assert [i.name.split(" (")[0] for i in failed] == [name]
+    assert "(3, 3) by robots [0, 1]" in failed[0].detail
+    assert dict(report.revisited_cells) == {(3, 3): (0, 1)}
+
+
+def test_three_visits_fail_backtracking() -> None:
+    walks = {0: [(0, 0), (0, 1), (0, 0), (0, 1), (0, 0)]}
+    report = report_of(run_mission(open_room(2, 2), walks, algo="opt").records)
+    inv = {i.name.split(" (")[0]: i for i in report.invariants}["at most twice, by the same robot"]
+    assert inv.status == "failed" and "covered 3+ times" in inv.detail
+
+
+def test_deaths_latency_and_takeover() -> None:
+    mission = run_mission(open_room(), two_robot_walks(), kill=(1, 5), taker=0)
+    report = report_of(mission.records)
+    [death] = report.deaths
+    assert (death.robot, death.detected_by, death.reason, death.taken_over_by) == \
+        (1, (0,), "token", (0,))
+    assert death.since_token_lost == pytest.approx(0.1)
+    assert death.since_last_heartbeat is not None and death.since_last_heartbeat > 0.1
+    assert statuses(report)["redundancy"] == "skipped"
+    assert not report.complete and not report.ok
+    assert [f.dead for f in report.robots] == [False, True]
+
+
+def test_json_is_stable(tmp_path: Path) -> None:
+    data = report_of(run_mission(open_room(), two_robot_walks()).records).to_json()
+    assert data["schema"] == "mstc-report" and data["version"] == 1
+    assert set(data) == {
+        "schema", "version", "mission", "algo", "reachable", "covered", "coverage_percent",
+        "complete", "coverage_moves", "coverage_sim_seconds", "coverage_wall_seconds",
+        "sim_seconds", "revisits", "revisited_cells", "robots", "deaths", "conflicts",
+        "messages", "malformed_lines", "invariants", "ok", "curve"}
+    assert json.loads(json.dumps(data)) == data
+
+
+def write(path: Path, records: list[Record]) -> None:
+    with RecordWriter(path, HEADER) as writer:
+        for record in records:
+            writer.write(record)
+
+
+def test_command_exit_codes_json_png_and_bad_lines(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    good = tmp_path / "good.jsonl"
+    write(good, run_mission(open_room(), two_robot_walks()).records)
+    with good.open("a") as stream:
+        stream.write("garbage\n")
+    png = tmp_path / "out.png"
+    assert main(["report", str(good), "--json", "--png", str(png)]) == 0
+    out, err = capsys.readouterr()
+    lines = len(good.read_text().splitlines())
+    assert f"good.jsonl:{lines}: skipped" in err
+    assert json.loads(out)["malformed_lines"][0]["line"] == lines
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    bad = tmp_path / "bad.jsonl"
+    write(bad, run_mission(open_room(), two_robot_walks(), kill=(1, 5), taker=0).records)
+    assert main(["report", str(bad)]) == 1
+    out, err = capsys.readouterr()
+    assert "FAILED" in out and "invariant failed: every reachable free sub-cell" in err
+    assert main(["report", str(tmp_path / "none.jsonl")]) == 2
+
+
+def test_a_robot_that_stops_unfinished_counts_as_a_failure() -> None:
+    from bus import keys
+    from bus.messages import RobotEvent
+
+    walks = two_robot_walks()
+    walks[1] = [*walks[1], (3, 3)]  # would fail "nb" if the run had no failure
+    mission = run_mission(open_room(), walks, algo="nb")
+    stop = Record(0.5, keys.events(M, 1), RobotEvent(1, 1, "stopped", None, "bumped"))
+    records = [r for r in mission.records
+               if not (isinstance(r.msg, RobotEvent) and r.msg.robot == 1)]
+    report = report_of([*records[:40], stop, *records[40:]])
+    inv = {i.name.split(" (")[0]: i for i in report.invariants}["redundancy"]
+    assert inv.status == "skipped" and "[1]" in inv.detail
