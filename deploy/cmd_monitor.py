@@ -10,6 +10,7 @@ import argparse
 import asyncio
 import contextlib
 import math
+import os
 import signal
 import sys
 from pathlib import Path
@@ -43,7 +44,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--world-period", type=_positive, default=2.0, metavar="S",
                         help="re-query the world and the robots' state every S seconds "
                              "(default %(default)s)")
+    parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
+                        help="watch the fleet of this `mstc up` run directory (default: the "
+                             "latest under runs/, when neither --mission nor MSTC_MISSION "
+                             "is given)")
     add_connection_arguments(parser)
+
+
+def _follow_run_dir(args: argparse.Namespace) -> None:
+    """Point the monitor at a fleet started by `mstc up` (its mission name is unique per run).
+
+    An explicit --mission (or MSTC_MISSION) wins; without a run directory the defaults stay.
+    """
+    from bus.config import DEFAULT_MISSION, ENV_MISSION
+    from deploy.fleet import FleetError, RunDir, latest_run_dir
+
+    explicit_mission = args.mission != DEFAULT_MISSION or ENV_MISSION in os.environ
+    if args.run_dir is None and explicit_mission:
+        return
+    try:
+        run_dir = args.run_dir if args.run_dir is not None else latest_run_dir()
+        info = RunDir(run_dir).read_fleet()
+    except FleetError as error:
+        if args.run_dir is not None:
+            raise UsageError(str(error)) from error
+        return
+    if not explicit_mission:
+        args.mission = info.mission
+    if not args.connect:
+        args.connect = [info.endpoint]
+    print(f"watching mission {args.mission} of {run_dir} via {args.connect[0]}",
+          file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -59,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     from deploy.monitor.app import PlainScreen, RichScreen, Screen, Watcher, watch_live
 
+    _follow_run_dir(args)
     try:
         settings = settings_from_args(args)
     except BusError as error:
