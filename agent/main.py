@@ -8,10 +8,7 @@ mismatch, a peer's "failed" verdict); 4 fenced (this life was declared dead).
 from __future__ import annotations
 
 import argparse
-import asyncio
 import importlib.util
-import logging
-import math
 import sys
 
 from agent.types import (
@@ -21,44 +18,18 @@ from agent.types import (
     DEFAULT_START_TIMEOUT,
     AgentConfig,
 )
+from bus.argtypes import index, non_negative, positive, positive_int
 from bus.config import add_connection_arguments, settings_from_args
-from bus.errors import BusError
+from planner.trees import ALL_TREE_KINDS
 
 OFFLINE_ALGOS = ("nb", "bt", "opt")
 # The on-line ORMSTC agent (agent/ormstc_*.py, another module's work) shares this command.
 ONLINE_ALGO = "ormstc"
 ALGOS = (*OFFLINE_ALGOS, ONLINE_ALGO)
-TREES = ("dfs", "bfs", "random", "kruskal")
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
-    return value
-
-
-def _non_negative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
-    return value
-
-
-def _count(text: str, least: int) -> int:
-    if not text.isdigit() or int(text) < least:
-        raise argparse.ArgumentTypeError(f"expected an integer >= {least}, got {text!r}")
-    return int(text)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--id", type=lambda t: _count(t, 0), required=True, metavar="I",
+    parser.add_argument("--id", type=index, required=True, metavar="I",
                         help="this robot's id, 0..K-1 (its body in simhw)")
     parser.add_argument("--algo", choices=ALGOS, required=True,
                         help="offline MSTC: nb non-backtracking, bt backtracking, opt optimal "
@@ -66,32 +37,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--world", metavar="FILE|NAME",
                         help="map file or builtin world name: the a-priori map of the offline "
                              "algorithms (required for nb, bt, opt)")
-    parser.add_argument("--cell-size", type=lambda t: _count(t, 1), default=None, metavar="PX",
+    parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
                         help="map pixels per sub-cell side (default 1)")
-    parser.add_argument("--tree", choices=TREES, default="dfs",
+    parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
                         help="spanning tree kind (default dfs)")
     parser.add_argument("--seed", type=int, default=0, help="tree seed (default 0)")
-    parser.add_argument("--robots", type=lambda t: _count(t, 1), required=True, metavar="K",
+    parser.add_argument("--robots", type=positive_int, required=True, metavar="K",
                         help="number of robots in the fleet")
-    parser.add_argument("--start-timeout", type=_positive, default=DEFAULT_START_TIMEOUT,
+    parser.add_argument("--start-timeout", type=positive, default=DEFAULT_START_TIMEOUT,
                         metavar="SECONDS",
                         help="how long to wait for simhw, every start and every plan digest "
                              "(default %(default)s)")
-    parser.add_argument("--incarnation", type=lambda t: _count(t, 1), default=1, metavar="N",
+    parser.add_argument("--incarnation", type=positive_int, default=1, metavar="N",
                         help="this life's number; a restart must use a higher one (default 1)")
-    parser.add_argument("--heartbeat-period", type=_positive, default=0.2, metavar="SECONDS",
+    parser.add_argument("--heartbeat-period", type=positive, default=0.2, metavar="SECONDS",
                         help="seconds between heartbeats (default %(default)s)")
-    parser.add_argument("--dead-after", type=_positive, default=3.0, metavar="SECONDS",
+    parser.add_argument("--dead-after", type=positive, default=3.0, metavar="SECONDS",
                         help="a robot silent this long is declared dead (default %(default)s)")
-    parser.add_argument("--announce-period", type=_positive, default=DEFAULT_ANNOUNCE_PERIOD,
+    parser.add_argument("--announce-period", type=positive, default=DEFAULT_ANNOUNCE_PERIOD,
                         metavar="SECONDS",
                         help="re-announce state and re-query peers this often "
                              "(default %(default)s)")
-    parser.add_argument("--hw-timeout", type=_positive, default=DEFAULT_HW_TIMEOUT,
+    parser.add_argument("--hw-timeout", type=positive, default=DEFAULT_HW_TIMEOUT,
                         metavar="SECONDS",
                         help="longest wait for one motion of the body, lost replies and "
                              "re-tries included (default %(default)s)")
-    parser.add_argument("--linger", type=_non_negative, default=DEFAULT_LINGER,
+    parser.add_argument("--linger", type=non_negative, default=DEFAULT_LINGER,
                         metavar="SECONDS",
                         help="stay after completion so peers can still query (default "
                              "%(default)s)")
@@ -127,17 +98,8 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     settings = settings_from_args(args)
-    logging.basicConfig(level=logging.WARNING,
-                        format=f"agent {config.robot} %(levelname)s %(message)s")
     # Imported here so that option mistakes are reported without loading Zenoh.
+    from agent.lifecycle import run_agent
     from agent.process import Agent
 
-    agent = Agent(config)
-    try:
-        code = asyncio.run(agent.run(settings))
-    except BusError as error:
-        print(f"mstc agent: error: {error}", file=sys.stderr)
-        return 2
-    if code != 0:
-        print(f"mstc agent {config.robot}: error: {agent.error}", file=sys.stderr)
-    return code
+    return run_agent(Agent(config), settings)

@@ -10,9 +10,9 @@ message delays — is a property of the network and the processes, not of simula
 from __future__ import annotations
 
 import argparse
-import math
 from dataclasses import dataclass
 
+from bus.argtypes import seconds
 from planner.ormstc.types import MachineConfig, Priority, SenseMode
 
 # Claim window (s): it must exceed twice the largest one-way delay of an ORMSTC message.
@@ -53,20 +53,10 @@ class OrmstcConfig:
             announce_connections=self.announce_connections, seed=self.seed)
 
 
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {text!r}")
-    return value
-
-
 def add_ormstc_arguments(parser: argparse.ArgumentParser) -> None:
     """The options only ``--algo ormstc`` reads (it reads no map: only simhw has one)."""
     group = parser.add_argument_group("ORMSTC (--algo ormstc)")
-    group.add_argument("--claim-wait", type=_seconds, default=DEFAULT_CLAIM_WAIT,
+    group.add_argument("--claim-wait", type=seconds, default=DEFAULT_CLAIM_WAIT,
                        metavar="SECONDS",
                        help="how long a claim waits for rival claims; must exceed twice the "
                             "largest one-way message delay (default %(default)s)")
@@ -78,11 +68,11 @@ def add_ormstc_arguments(parser: argparse.ArgumentParser) -> None:
                        default=Priority.ID.value,
                        help="who wins a contested cell: highest id, or fewest cells "
                             "(default id)")
-    group.add_argument("--watch-interval", type=_seconds, default=DEFAULT_WATCH_INTERVAL,
+    group.add_argument("--watch-interval", type=seconds, default=DEFAULT_WATCH_INTERVAL,
                        metavar="SECONDS",
                        help="after completion, ask about neighbours this often "
                             "(default %(default)s)")
-    group.add_argument("--bump-backoff", type=_seconds, default=DEFAULT_BUMP_BACKOFF,
+    group.add_argument("--bump-backoff", type=seconds, default=DEFAULT_BUMP_BACKOFF,
                        metavar="SECONDS",
                        help="back off 1-2 x this after a bump (default %(default)s)")
     group.add_argument("--announce-connections", action="store_true",

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planner.grid import work_area
+from planner.grid import cell_of, work_area
 from planner.pipeline import make_plan
 from planner.takeover import check_replayable
 from planner.trees import build_tree
@@ -24,7 +24,7 @@ def compute_plan(grid: OccupancyGrid, starts: Sequence[SubCell], algo: str, tree
                  seed: int) -> Plan:
     """The offline plan for ``starts``; PlannerError for user mistakes (bad starts, algo)."""
     area = work_area(grid, starts)
-    spanning = build_tree(area.cells, tree, seed=seed)
+    spanning = build_tree(area.cells, tree, seed=seed, starts=[cell_of(s) for s in starts])
     plan = make_plan(area, spanning, algo)
     check_replayable(plan)
     return plan

@@ -6,28 +6,26 @@ robot's start, compute the plan, announce its digest and compare the others', dr
 service (token, heartbeats, failure detector), the announcer (re-publishes status, known
 deaths and the mission verdict; answers state queries) and three watchers that end the group
 with a specific exception: own death notice (FencedError), SIGTERM/SIGINT (LeaveRequested),
-a peer's "failed" verdict (MissionFailedError).
+a peer's "failed" verdict (MissionFailedError). That process frame is agent.lifecycle's,
+shared with the ORMSTC agent; this module adds the offline mission and the third watcher.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
-import signal
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
 from typing import Any
 
 from agent.errors import (
     AgentError,
     DigestMismatchError,
-    FencedError,
     GatherTimeoutError,
-    LeaveRequested,
     MissionFailedError,
 )
 from agent.hardware import Hardware
+from agent.lifecycle import AgentLife
 from agent.peers import PeerTable
 from agent.plan import compute_plan, plan_digest
 from agent.runner import OfflineRunner
@@ -35,7 +33,6 @@ from agent.types import AgentConfig, AgentState, pack_covered
 from bus import keys
 from bus.announce import Announcer
 from bus.bridge import BoundedFifo, Bus, LatestWins, Received
-from bus.config import ConnectionSettings
 from bus.liveness import HeartbeatInfo, LivelinessService
 from bus.messages import (
     DeathNotice,
@@ -54,7 +51,6 @@ from planner.types import Plan
 _log = logging.getLogger("mstc.agent")
 _T0 = time.monotonic()
 STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress)
-LEAVE_FLUSH_S = 0.1
 
 
 class _StateAnnouncer(Announcer):
@@ -68,8 +64,10 @@ class _StateAnnouncer(Announcer):
         return [*super().messages(), self._agent.state_message()]
 
 
-class Agent:
+class Agent(AgentLife):
     """One robot. ``await agent.run(settings)`` returns the process exit code."""
+
+    END_PRIORITY = (*AgentLife.END_PRIORITY, PlannerError)
 
     def __init__(self, config: AgentConfig) -> None:
         self.config = config
@@ -249,15 +247,6 @@ class Agent:
 
     # --- watchers -------------------------------------------------------------------------
 
-    async def _watch_fence(self) -> None:
-        await self.liveness.fenced.wait()
-        raise FencedError(f"robot {self.robot} incarnation {self.incarnation} was declared "
-                          "dead; stopping")
-
-    async def _watch_stop(self) -> None:
-        await self.stop.wait()
-        raise LeaveRequested()
-
     async def _watch_mission(self) -> None:
         while True:
             await self.peers.verdict.wait()
@@ -266,72 +255,10 @@ class Agent:
                 raise MissionFailedError(f"mission failed: {mission.message}")
             self.peers.verdict.clear()
 
-    async def _run_group(self) -> None:
-        async with asyncio.TaskGroup() as group:
-            background = [group.create_task(self.liveness.run()),
-                          group.create_task(self.announcer.run()),
-                          group.create_task(self._watch_fence()),
-                          group.create_task(self._watch_stop()),
-                          group.create_task(self._watch_mission())]
-            await self._mission()
-            for task in background:
-                task.cancel()
+    def _watchers(self) -> list[Coroutine[Any, Any, None]]:
+        return [*super()._watchers(), self._watch_mission()]
 
-    async def run(self, settings: ConnectionSettings) -> int:
-        loop = asyncio.get_running_loop()
-        for sig in (signal.SIGTERM, signal.SIGINT):
-            with contextlib.suppress(NotImplementedError, RuntimeError):
-                loop.add_signal_handler(sig, self.stop.set)
-        async with Bus.connect(settings) as bus:
-            self._wire(bus)
-            try:
-                await self._run_group()
-            except BaseExceptionGroup as group:
-                return await self._ending(_main_error(group))
-            self.liveness.leave()
-            await asyncio.sleep(LEAVE_FLUSH_S)
-        return 0
-
-    async def _ending(self, error: BaseException) -> int:
-        """Tell the others how this life ends; return the exit code."""
-        self.error = str(error)
-        if isinstance(error, LeaveRequested):
-            self._status("left", "SIGTERM/SIGINT")
-            self._event("leaving", detail="asked to stop")
-            self.liveness.leave()
-            code = 0
-        elif isinstance(error, FencedError):
-            self._status("fenced", str(error))
-            self._event("fenced", detail=str(error))
-            code = error.exit_code
-        elif isinstance(error, AgentError):
-            if isinstance(error, MissionFailedError) and (
-                    self.peers.mission is None or self.peers.mission.state != "failed"):
-                self._mission_status("failed", str(error))
-            self._status("stopped", str(error))
-            self._event("stopped", detail=str(error))
-            self.liveness.leave()
-            code = error.exit_code
-        else:
-            raise error
-        await asyncio.sleep(LEAVE_FLUSH_S)
-        return code
-
-
-def _main_error(group: BaseExceptionGroup[BaseException]) -> BaseException:
-    """The exception that decides how the process ends (fencing first, then leaving)."""
-    flat: list[BaseException] = []
-
-    def collect(exc: BaseException) -> None:
-        if isinstance(exc, BaseExceptionGroup):
-            for inner in exc.exceptions:
-                collect(inner)
-        else:
-            flat.append(exc)
-
-    collect(group)
-    for kind in (FencedError, LeaveRequested, AgentError, PlannerError):
-        for exc in flat:
-            if isinstance(exc, kind):
-                return exc
-    return flat[0]
+    def _ending_agent_error(self, error: AgentError) -> None:
+        if isinstance(error, MissionFailedError) and (
+                self.peers.mission is None or self.peers.mission.state != "failed"):
+            self._mission_status("failed", str(error))

@@ -9,16 +9,15 @@ from __future__ import annotations
 
 import argparse
 import signal
-import sys
 from pathlib import Path
 
-from deploy.cli import UsageError
 from deploy.fleet import (
     LAUNCHER,
     ProcessRecord,
     RunDir,
     latest_run_dir,
     send_signal,
+    usage_errors_as_lines,
     wait_gone,
 )
 
@@ -41,13 +40,7 @@ def _stop(records: list[ProcessRecord], timeout: float) -> list[ProcessRecord]:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        # Also caught here because under "python -m deploy.cli" the dispatcher's UsageError
-        # is another class object than the one FleetError derives from.
-        print(f"mstc down: error: {error}", file=sys.stderr)
-        return 2
+    return usage_errors_as_lines("down", _run, args)
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -7,11 +7,16 @@ from __future__ import annotations
 import argparse
 import asyncio
 import signal
-import sys
 from pathlib import Path
 
-from deploy.cli import UsageError
-from deploy.fleet import FleetError, FleetInfo, RunDir, latest_run_dir, send_signal
+from deploy.fleet import (
+    FleetError,
+    FleetInfo,
+    RunDir,
+    latest_run_dir,
+    send_signal,
+    usage_errors_as_lines,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -23,13 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        # Also caught here because under "python -m deploy.cli" the dispatcher's UsageError
-        # is another class object than the one FleetError derives from.
-        print(f"mstc kill: error: {error}", file=sys.stderr)
-        return 2
+    return usage_errors_as_lines("kill", _run, args)
 
 
 def _run(args: argparse.Namespace) -> int:

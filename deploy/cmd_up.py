@@ -3,7 +3,7 @@ progress, kill robots on schedule, print a summary, stop everything; exit 0 only
 reachable free sub-cell was covered.
 
 Exit codes: 0 complete; 1 incomplete (stalled, robots all lost, a process failed);
-2 usage or start-up error (bad map, port in use); 130/143 interrupted by SIGINT/SIGTERM.
+2 usage or start-up error (bad map, port in use); 129/130/143 interrupted by SIGHUP/SIGINT/SIGTERM.
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ import asyncio
 import math
 import os
 import re
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ from deploy.fleet import (
     default_run_dir,
     port_reachable,
     unique_mission,
+    usage_errors_as_lines,
 )
 from deploy.summary import reachable_sub_cells
 from planner.grid import cell_of, coarsen, validate_starts, work_area
@@ -244,13 +244,7 @@ def endpoint_of(args: argparse.Namespace) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        # Also caught here because under "python -m deploy.cli" the dispatcher's UsageError
-        # is another class object than the one FleetError derives from.
-        print(f"mstc up: error: {error}", file=sys.stderr)
-        return 2
+    return usage_errors_as_lines("up", _run, args)
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -16,6 +16,7 @@ Run directory layout::
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import secrets
@@ -24,6 +25,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,6 +40,19 @@ LAUNCHER = "up"
 
 class FleetError(UsageError):
     """A fleet could not be started, found or stopped; the message is one readable line."""
+
+
+def usage_errors_as_lines(command: str, body: Callable[[argparse.Namespace], int],
+                          args: argparse.Namespace) -> int:
+    """``body(args)``, with a UsageError (FleetError included) printed as one line, exit 2.
+
+    Caught here too because under "python -m deploy.cli" the dispatcher's UsageError is
+    another class object than the one FleetError derives from."""
+    try:
+        return body(args)
+    except UsageError as error:
+        print(f"mstc {command}: error: {error}", file=sys.stderr)
+        return 2
 
 
 @dataclass(frozen=True)

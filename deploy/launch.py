@@ -341,7 +341,9 @@ def _install_signals(launcher: Launcher) -> list[int]:
         launcher.stop.set()
         launcher.wake.set()
 
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    # SIGHUP too: closing the terminal must not orphan the children, which run in their own
+    # process sessions and so never see the terminal's hang-up themselves.
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         with contextlib.suppress(NotImplementedError, RuntimeError):
             loop.add_signal_handler(sig, on_signal, sig)
             handled.append(sig)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
-import math
 import sys
 
+from bus.argtypes import non_negative, positive_int, time_scale
 from bus.config import add_connection_arguments, settings_from_args
 from bus.errors import BusError
 from planner.errors import RobotPlacementError
@@ -34,59 +34,32 @@ def _headings(text: str) -> tuple[Heading, ...]:
     return tuple(_HEADING_NAMES[p] for p in parts)
 
 
-def _time_scale(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if math.isnan(value) or value < 0:
-        raise argparse.ArgumentTypeError(
-            f"time scale must be >= 0 (0 or inf = as fast as possible), got {text!r}")
-    return value
-
-
-def _positive_int(text: str) -> int:
-    if not text.isdigit() or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return int(text)
-
-
-def _non_negative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
-    return value
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--world", required=True, metavar="SPEC",
                         help="builtin world name or map file (see mstc plan --help)")
-    parser.add_argument("--cell-size", type=_positive_int, default=None, metavar="PX",
+    parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
                         help="map pixels per sub-cell side (default 1)")
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--robots", metavar="'r,c;r,c;...'",
                        help="start sub-cell of each robot, in robot-id order")
-    where.add_argument("--random-robots", type=_positive_int, metavar="K",
+    where.add_argument("--random-robots", type=positive_int, metavar="K",
                        help="place K robots at random in the largest free component")
     parser.add_argument("--seed", type=int, default=0,
                         help="seed of random placement and odometry noise (default 0)")
     parser.add_argument("--headings", type=_headings, default=None, metavar="H,H,...",
                         help="initial heading per robot: N, E, S or W (default all N)")
-    parser.add_argument("--time-scale", type=_time_scale, default=1.0, metavar="X",
+    parser.add_argument("--time-scale", type=time_scale, default=1.0, metavar="X",
                         help="sim seconds per wall second; 0 or inf = as fast as possible "
                              "(default 1)")
     parser.add_argument("--sonar-mode", choices=[m.value for m in SonarMode],
                         default=SonarMode.ALL.value,
                         help="'one-at-a-time' allows one sonar direction per sense command, "
                              "like the paper's RV-400 (default all)")
-    parser.add_argument("--sonar-range", type=_positive_int, default=WorldConfig.sonar_range,
+    parser.add_argument("--sonar-range", type=positive_int, default=WorldConfig.sonar_range,
                         metavar="N", help="sonar range in sub-cells (default %(default)s)")
-    parser.add_argument("--odometry-noise", type=_non_negative, default=0.0, metavar="SIGMA",
+    parser.add_argument("--odometry-noise", type=non_negative, default=0.0, metavar="SIGMA",
                         help="relative std. dev. of per-step odometry error (default 0)")
-    parser.add_argument("--frozen-hold", type=_non_negative, default=600.0, metavar="S",
+    parser.add_argument("--frozen-hold", type=non_negative, default=600.0, metavar="S",
                         help="wall seconds a command to a frozen body is held before it is "
                              "answered 'frozen' (default 600)")
     parser.add_argument("--dead-bodies", choices=DEAD_BODIES, default="vanish",

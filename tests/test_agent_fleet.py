@@ -12,7 +12,6 @@ import itertools
 import random
 import signal
 import subprocess
-import sys
 import time
 from collections import defaultdict
 from collections.abc import AsyncIterator, Sequence
@@ -22,6 +21,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from fleet_helpers import mission_bus, mstc, start_simhw, stop_processes, write_room
 
 from agent.plan import compute_plan, plan_digest
 from agent.types import AgentState
@@ -73,26 +73,25 @@ class Fleet:
     missions: list[MissionStatus] = field(default_factory=list)
 
     def agent_command(self, robot: int, *extra: str) -> list[str]:
-        return [sys.executable, "-m", "deploy.cli", "agent", "--id", str(robot),
-                "--algo", self.algo, "--world", str(self.world), "--robots", str(K),
-                "--connect", self.router, "--mission", self.mission,
-                # SIGKILLs are seen through the liveliness token within ~0.1 s and hangs
-                # through the token's lease; a long heartbeat timeout only keeps a loaded
-                # test machine from declaring a slow but live agent dead.
-                "--start-timeout", "30", "--dead-after", "10", "--linger", "0.5", *extra]
+        return mstc("agent", "--id", str(robot), "--algo", self.algo, "--world", str(self.world),
+                    "--robots", str(K), "--connect", self.router, "--mission", self.mission,
+                    # SIGKILLs are seen through the liveliness token within ~0.1 s and hangs
+                    # through the token's lease; a long heartbeat timeout only keeps a loaded
+                    # test machine from declaring a slow but live agent dead.
+                    "--start-timeout", "30", "--dead-after", "10", "--linger", "0.5", *extra)
 
     def start(self, time_scale: float, *agent_args: str) -> None:
-        robots = ";".join(f"{r},{c}" for r, c in STARTS)
-        self.simhw = subprocess.Popen(
-            [sys.executable, "-m", "deploy.cli", "simhw", "--world", str(self.world),
-             "--robots", robots, "--time-scale", str(time_scale), "--connect", self.router,
-             "--mission", self.mission],
-            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-            text=True)
+        self.simhw = start_simhw(self.world, STARTS, self.router, self.mission, time_scale)
         for robot in range(K):
             self.agents[robot] = subprocess.Popen(
                 self.agent_command(robot, *agent_args), stdin=subprocess.DEVNULL,
                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    async def start_driving(self, time_scale: float) -> None:
+        """Start the fleet and wait until every agent drives its plan."""
+        self.start(time_scale)
+        for robot in range(K):
+            await self.wait_line(robot, "driving")
 
     async def wait_line(self, robot: int, text: str, timeout: float = PROCESS_TIMEOUT) -> None:
         """Read the agent's stdout until a line containing ``text``."""
@@ -111,19 +110,7 @@ class Fleet:
         return int(code)
 
     def stop_all(self) -> None:
-        procs = [*self.agents.values(), *([self.simhw] if self.simhw else [])]
-        for proc in procs:
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGTERM)
-        for proc in procs:
-            try:
-                proc.wait(10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-            for stream in (proc.stdout, proc.stderr):
-                if stream is not None:
-                    stream.close()
+        stop_processes([*self.agents.values(), *([self.simhw] if self.simhw else [])])
 
     def stderr_of(self, robot: int) -> str:
         stream = self.agents[robot].stderr
@@ -131,15 +118,13 @@ class Fleet:
             else ""
 
 
-def expected_plan(world: Path, algo: str) -> Plan:
-    return compute_plan(resolve_world(str(world)), STARTS, algo, "dfs", 0)
+def expected_plan(world: Path, algo: str, tree: str = "dfs") -> Plan:
+    return compute_plan(resolve_world(str(world)), STARTS, algo, tree, 0)
 
 
 @pytest.fixture
 def world(tmp_path: Path) -> Path:
-    path = tmp_path / "room.txt"
-    path.write_text("\n".join(ROOM) + "\n")
-    return path
+    return write_room(tmp_path, ROOM)
 
 
 async def _listen(fleet: Fleet, bus: Bus) -> None:
@@ -171,14 +156,14 @@ async def _listen(fleet: Fleet, bus: Bus) -> None:
 
 @pytest.fixture
 async def fleet_bus(router: str) -> AsyncIterator[Bus]:
-    mission = f"agent{next(_missions)}"
-    async with Bus.connect(ConnectionSettings(connect=(router,), mission=mission)) as bus:
+    async with mission_bus(router, f"agent{next(_missions)}") as bus:
         yield bus
 
 
-async def make_fleet(bus: Bus, router: str, world: Path, algo: str) -> Fleet:
+async def make_fleet(bus: Bus, router: str, world: Path, algo: str,
+                     tree: str = "dfs") -> Fleet:
     fleet = Fleet(world=world, algo=algo, mission=bus.mission, router=router,
-                  plan=expected_plan(world, algo))
+                  plan=expected_plan(world, algo, tree))
     await _listen(fleet, bus)
     return fleet
 
@@ -207,13 +192,18 @@ def covered_mask(fleet: Fleet, shape: tuple[int, int]) -> np.ndarray:
     return mask
 
 
-@pytest.mark.parametrize("algo", [
-    "nb", pytest.param("bt", marks=pytest.mark.slow), pytest.param("opt", marks=pytest.mark.slow)])
+@pytest.mark.parametrize(("algo", "tree"), [
+    ("nb", "dfs"), pytest.param("bt", "dfs", marks=pytest.mark.slow),
+    pytest.param("opt", "dfs", marks=pytest.mark.slow),
+    # A paper tree (Create Tree needs the starts, which each agent learns by gathering).
+    ("opt", "createtree")])
 async def test_fleet_follows_the_plan_and_covers_everything(
-        fleet_bus: Bus, router: str, world: Path, algo: str) -> None:
-    fleet = await make_fleet(fleet_bus, router, world, algo)
+        fleet_bus: Bus, router: str, world: Path, algo: str, tree: str) -> None:
+    fleet = await make_fleet(fleet_bus, router, world, algo, tree)
+    if tree != "dfs":  # else the test could not tell whether --tree reached the agents
+        assert plan_digest(fleet.plan) != plan_digest(expected_plan(world, algo))
     try:
-        fleet.start(0)
+        fleet.start(0, "--tree", tree)
         codes = [await fleet.wait_exit(robot) for robot in range(K)]
         assert codes == [0] * K, [fleet.stderr_of(r) for r in range(K)]
         await asyncio.sleep(0.2)  # the last ground-truth messages
@@ -257,9 +247,7 @@ async def test_fleet_survives_sigkills_as_the_takeover_semantics_say(
     victims = rng.sample(range(K), count)
     fleet = await make_fleet(fleet_bus, router, world, algo)
     try:
-        fleet.start(60)
-        for robot in range(K):
-            await fleet.wait_line(robot, "driving")
+        await fleet.start_driving(60)
         killed_at = {}
         for robot in victims:
             await asyncio.sleep(rng.uniform(0.0, 1.0))
@@ -323,9 +311,7 @@ async def test_garbage_is_counted_and_sigterm_leaves_cleanly(
         fleet_bus: Bus, router: str, world: Path) -> None:
     fleet = await make_fleet(fleet_bus, router, world, "bt")
     try:
-        fleet.start(20)
-        for robot in range(K):
-            await fleet.wait_line(robot, "driving")
+        await fleet.start_driving(20)
         garbage(fleet_bus)
         await asyncio.sleep(0.5)
         replies: list[Received[Any]] = await fleet_bus.query(
@@ -366,9 +352,7 @@ async def test_a_hung_robot_declared_dead_is_fenced_when_it_wakes(
         fleet_bus: Bus, router: str, world: Path) -> None:
     fleet = await make_fleet(fleet_bus, router, world, "nb")
     try:
-        fleet.start(10)
-        for robot in range(K):
-            await fleet.wait_line(robot, "driving")
+        await fleet.start_driving(10)
         fleet.agents[2].send_signal(signal.SIGSTOP)
         async with asyncio.timeout(PROCESS_TIMEOUT):
             while not any(e.kind == "takeover_started" and e.subject == 2
@@ -400,9 +384,7 @@ async def test_a_router_restart_mid_mission_does_not_lose_the_mission(
                                                   mission="restart")) as bus:
             fleet = await make_fleet(bus, endpoint, world, "bt")
             try:
-                fleet.start(10)
-                for robot in range(K):
-                    await fleet.wait_line(robot, "driving")
+                await fleet.start_driving(10)
                 stop_process(router)
                 await asyncio.sleep(1.0)
                 router = start_router_process(endpoint)
@@ -425,18 +407,15 @@ async def test_missing_robots_and_digest_mismatch_stop_the_mission_with_clear_er
         != plan_digest(compute_plan(resolve_world(str(world)), STARTS[:2], "nb", "bfs", 0))
     m = fleet_bus.mission
     await _listen(fleet := Fleet(world, "nb", m, router, expected_plan(world, "nb")), fleet_bus)
-    robots = ";".join(f"{r},{c}" for r, c in STARTS[:2])
-    simhw = subprocess.Popen(
-        [sys.executable, "-m", "deploy.cli", "simhw", "--world", str(world), "--robots",
-         robots, "--time-scale", "0", "--connect", router, "--mission", m],
-        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    simhw = start_simhw(world, STARTS[:2], router, m, 0, stdout=subprocess.DEVNULL,
+                        stderr=subprocess.DEVNULL)
 
     def agent(robot: int, *extra: str) -> subprocess.Popen[str]:
         return subprocess.Popen(
-            [sys.executable, "-m", "deploy.cli", "agent", "--id", str(robot), "--algo", "nb",
-             "--world", str(world), "--robots", "2", "--connect", router, "--mission", m,
-             *extra], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE, text=True)
+            mstc("agent", "--id", str(robot), "--algo", "nb", "--world", str(world),
+                 "--robots", "2", "--connect", router, "--mission", m, *extra),
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+            text=True)
 
     try:
         # Robot 1 never comes: robot 0 names it and gives up.

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import io
+import math
 import signal
 import socket
 import subprocess
@@ -18,6 +19,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from agent.plan import compute_plan, plan_digest
+from bus import argtypes
 from bus.messages import (
     CoverEvent,
     DeathNotice,
@@ -26,7 +29,7 @@ from bus.messages import (
     RobotTruth,
     make_world_state,
 )
-from deploy import cmd_down, cmd_kill
+from deploy import cmd_down, cmd_kill, cmd_up
 from deploy.cmd_up import KillOrder, liveness_defaults, parse_kill, stall_timeout
 from deploy.fleet import (
     FleetError,
@@ -78,6 +81,52 @@ def test_up_rejects_mistakes_in_one_line_before_starting(tmp_path: Path, extra: 
     assert result.returncode == 2
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "run").exists()
+
+
+# --- shared option types (bus.argtypes) and the mission set-up ------------------------------
+
+
+def _float_or_none(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.one_of(st.floats(allow_nan=True, allow_infinity=True).map(repr),
+                 st.integers(-5, 50).map(str), st.sampled_from(["²", "٣", "1e3", "+2", ""]),
+                 st.text(max_size=4)))
+def test_option_types_accept_exactly_their_ranges(text: str) -> None:
+    value = _float_or_none(text)
+    cases = [
+        (argtypes.positive, value is not None and math.isfinite(value) and value > 0),
+        (argtypes.seconds, value is not None and math.isfinite(value) and value > 0),
+        (argtypes.non_negative, value is not None and math.isfinite(value) and value >= 0),
+        (argtypes.time_scale, value is not None and not math.isnan(value) and value >= 0),
+        (argtypes.positive_int, text.isascii() and text.isdigit() and int(text) >= 1),
+        (argtypes.index, text.isascii() and text.isdigit()),
+    ]
+    for parse, ok in cases:
+        if ok:
+            assert parse(text) == (int(text) if parse in (argtypes.positive_int,
+                                                          argtypes.index) else value)
+        else:
+            with pytest.raises(argparse.ArgumentTypeError):
+                parse(text)
+
+
+def test_up_plans_paper_trees_from_the_robots_starts() -> None:
+    """Create Tree needs the start cells: without them build_tree refuses to plan."""
+    parser = argparse.ArgumentParser()
+    cmd_up.add_arguments(parser)
+    args = parser.parse_args(["-n", "3", "--world", "open-room", "--tree", "createtree",
+                              "--seed", "2"])
+    setup = cmd_up.MissionSetup.from_args(args)
+    agents = compute_plan(setup.grid, setup.starts, "opt", "createtree", 2)
+    assert setup.planned_makespan == agents.makespan
+    assert plan_digest(agents) != plan_digest(
+        compute_plan(setup.grid, setup.starts, "opt", "dfs", 2))
 
 
 def test_default_stall_timeout_allows_100_moves_of_wall_time() -> None:

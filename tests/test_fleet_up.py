@@ -122,15 +122,18 @@ def test_second_fleet_on_same_port_fails_then_down_stops_first(free_port: int,
             first.wait()
 
 
-def test_sigterm_stops_everything_cleanly(free_port: int, tmp_path: Path) -> None:
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_a_signal_stops_everything_cleanly(free_port: int, tmp_path: Path,
+                                           sig: signal.Signals) -> None:
+    """SIGTERM from `mstc down`, SIGHUP from a closed terminal: no child is left behind."""
     proc = start_up(free_port, tmp_path / "run", "--time-scale", "1")
     try:
         info = wait_for_fleet(tmp_path / "run", proc)
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(sig)
         out, err = proc.communicate(timeout=RUN_LIMIT)
-        assert proc.returncode == 128 + signal.SIGTERM, err
+        assert proc.returncode == 128 + sig, err
         assert "Traceback" not in err
-        assert "INCOMPLETE" in out and "stopped by SIGTERM" in out
+        assert "INCOMPLETE" in out and f"stopped by {sig.name}" in out
         assert_all_gone(info)
         assert not list((tmp_path / "run" / "pids").iterdir())
     finally:
