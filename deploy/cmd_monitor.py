@@ -9,25 +9,15 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-import math
 import os
 import signal
 import sys
 from pathlib import Path
 
+from bus.argtypes import positive
 from bus.config import add_connection_arguments, settings_from_args
 from bus.errors import BusError
 from deploy.cli import UsageError
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
-    return value
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -36,12 +26,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "is not a terminal)")
     parser.add_argument("--record", type=Path, default=None, metavar="FILE",
                         help="write every message to FILE as JSON Lines (see docs/protocol.md)")
-    parser.add_argument("--duration", type=_positive, default=None, metavar="S",
+    parser.add_argument("--duration", type=positive, default=None, metavar="S",
                         help="stop after S seconds")
     parser.add_argument("--exit-when-done", action="store_true",
                         help="stop once the mission has a verdict and every robot is done, "
                              "dead or gone")
-    parser.add_argument("--world-period", type=_positive, default=2.0, metavar="S",
+    parser.add_argument("--world-period", type=positive, default=2.0, metavar="S",
                         help="re-query the world and the robots' state every S seconds "
                              "(default %(default)s)")
     parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",

@@ -7,6 +7,7 @@ import json
 import sys
 from typing import Any
 
+from bus.argtypes import positive_int
 from deploy.cli import UsageError
 from planner.balanced import balanced_plan
 from planner.grid import cell_of, work_area
@@ -23,12 +24,12 @@ ALGOS = ("nb", "bt", "opt", "balanced")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map", required=True, metavar="FILE|NAME",
                         help="map file (.txt, .map, .yaml, .pgm, .png) or a builtin world name")
-    parser.add_argument("--cell-size", type=int, default=None, metavar="PX",
+    parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
                         help="pixels per sub-cell (tool width) for image maps")
     robots = parser.add_mutually_exclusive_group(required=True)
     robots.add_argument("--robots", metavar="R,C;R,C;...",
                         help="robot starts as sub-cell coordinates (row, col)")
-    robots.add_argument("--random-robots", type=int, metavar="K",
+    robots.add_argument("--random-robots", type=positive_int, metavar="K",
                         help="place K robots at random free sub-cells (see --seed)")
     parser.add_argument("--seed", type=int, default=0, help="seed for placement and trees")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
