@@ -4,17 +4,35 @@ Each command is a query on ``hw/<r>/cmd`` answered when the motion is over in si
 agent.hardware (the offline agent's client) a bump is returned, not retried: the ORMSTC
 machine backs off and retries itself. Sense commands name their sonars; when simhw runs in
 one-at-a-time mode (it rejects several), every later sense names one.
+
+:func:`look` carries out the machine's ``Sense`` with that body and agent.ormstc_sensing's
+geometry: a thin ray sees one half of a neighbouring cell, so when the other half was never
+seen free the robot steps to the sub-cell beside it (its own cell), reads the same direction
+with a side sonar and steps back (docs/ormstc.md, "Sensing with a thin sonar").
 """
 
 from __future__ import annotations
 
 import asyncio
 import time
+from typing import Protocol, cast
 
 from agent.errors import FencedError, HardwareError
+from agent.ormstc_sensing import (
+    BodyTest,
+    SonarMap,
+    beside,
+    cell_of,
+    cells_in_view,
+    direction_of,
+    direction_to,
+    judge,
+    sensor_for,
+)
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import HwAction, HwCommand, HwReply, Sensor
+from planner.ormstc.types import Cell, CellStatus, Sense, SenseMode, SenseResult, SubCell
 
 _TURNS: dict[int, tuple[HwAction, ...]] = {
     0: (), 1: ("turn_right",), 2: ("turn_right", "turn_right"), 3: ("turn_left",)}
@@ -66,6 +84,14 @@ class Body:
                                         f"{patience:g} s (is simhw running?)") from None
                 await asyncio.sleep(0.2)
 
+    async def forward(self) -> bool:
+        """One step ahead: True if the body moved, False if it bumped."""
+        reply = await self.command("forward")
+        if reply.status not in ("ok", "bumped"):
+            raise HardwareError(f"robot {self.robot}: forward answered {reply.status}: "
+                                f"{reply.message}")
+        return reply.status == "ok"
+
     async def face(self, heading: int) -> None:
         assert self.pose is not None
         action: HwAction
@@ -85,3 +111,91 @@ class Body:
         for sensor in sensors:
             ranges.update((await self.must("sense", (sensor,))).sonar)
         return ranges
+
+
+class Hardware(Protocol):
+    """What :func:`look` needs of a body (``Body``, or a test's stand-in)."""
+
+    pose: tuple[int, int, int] | None
+
+    async def face(self, heading: int) -> None: ...
+
+    async def forward(self) -> bool: ...
+
+    async def sonar(self, sensors: tuple[Sensor, ...]) -> dict[str, int | None]: ...
+
+
+_ALL_SONARS: tuple[Sensor, ...] = ("front", "left", "right")
+
+
+async def look(body: Hardware, sonar: SonarMap, request: Sense, mode: SenseMode,
+               may_hold_body: BodyTest) -> SenseResult:
+    """The answer to ``request``: no cell is FREE unless both of its halves were seen free.
+
+    The target gets an extra look from the sub-cell beside when its other half is unknown;
+    another requested cell with an unknown half is left out (the machine then senses it
+    again when it decides it). All three sonars are read whatever was asked (one command
+    each in one-at-a-time mode): a reading takes 0.1 s of simhw time, a step aside and back
+    about 8 s, and the extra rays spare many of those (docs/ormstc.md).
+    """
+    pose = _pose(body)
+    pos: SubCell = (pose[0], pose[1])
+    here, target = cell_of(pos), request.cells[0]
+    if sensor_for(pose[2], direction_to(here, target)) is None:
+        await _face(body, (pose[2] + 1) % 4, sonar)  # the cell is behind
+    heading = _pose(body)[2]
+    view = cells_in_view(here, heading, request.cells if mode is SenseMode.ALL else (target,))
+    ranges = await _read(body, sonar, _ALL_SONARS, pos, heading, may_hold_body)
+    statuses: list[tuple[Cell, CellStatus]] = []
+    for cell, sensor in view.items():
+        direction = direction_of(heading, sensor)
+        status = judge(cell, pos, direction, ranges.get(sensor), sonar, may_hold_body)
+        if status is None and cell == target:
+            status = await _look_beside(body, sonar, target, pos, direction, may_hold_body)
+        if status is not None:
+            statuses.append((cell, status))
+    return SenseResult(tuple(statuses))
+
+
+async def _look_beside(body: Hardware, sonar: SonarMap, target: Cell, pos: SubCell,
+                       direction: int, may_hold_body: BodyTest) -> CellStatus:
+    """Step to the sub-cell beside ``pos``, look along ``direction`` at ``target``, step back."""
+    side = beside(pos, direction)
+    aside = direction_to(pos, side)
+    sonar.beside_looks += 1
+    await _face(body, aside, sonar)
+    if not await body.forward():
+        # only a body can stand in the robot's own cell: report one, nothing is remembered
+        return CellStatus.ROBOT
+    sonar.steps += 1
+    sensor = cast(Sensor, sensor_for(aside, direction))  # a side sonar: never behind
+    ranges = await _read(body, sonar, _ALL_SONARS, side, aside, may_hold_body)
+    status = judge(target, side, direction, ranges.get(sensor), sonar, may_hold_body)
+    await _face(body, (aside + 2) % 4, sonar)
+    if not await body.forward():
+        raise HardwareError(f"cannot step back to {pos} after looking at cell {target} "
+                            "from beside: something entered the robot's own cell")
+    sonar.steps += 1
+    # both halves are in the memory now, so None cannot come back; if it did, never say FREE
+    return CellStatus.ROBOT if status is None else status
+
+
+async def _read(body: Hardware, sonar: SonarMap, sensors: tuple[Sensor, ...], pos: SubCell,
+                heading: int, may_hold_body: BodyTest) -> dict[str, int | None]:
+    ranges = await body.sonar(sensors)
+    sonar.readings += len(sensors)
+    for sensor in sensors:
+        sonar.record(pos, direction_of(heading, sensor), ranges.get(sensor), may_hold_body)
+    return ranges
+
+
+async def _face(body: Hardware, heading: int, sonar: SonarMap) -> None:
+    turns = (heading - _pose(body)[2]) % 4
+    sonar.turns += 2 if turns == 2 else min(turns, 1)
+    await body.face(heading)
+
+
+def _pose(body: Hardware) -> tuple[int, int, int]:
+    if body.pose is None:
+        raise HardwareError("the body's pose is not known yet")
+    return body.pose

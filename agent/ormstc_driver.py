@@ -3,9 +3,10 @@
 The machine (planner.ormstc) decides everything; this module carries its requests out, as
 simhw/lockstep.py does in-process:
 
-- ``Sense`` -> sonar commands (agent.ormstc_sensing: which sonar, turning first when the cell
-  is behind; ``--sense-mode single`` or a simhw in one-at-a-time mode: one sonar per
-  command), ``Move`` -> turns and one forward step (a bump is ``MoveResult(ok=False)``),
+- ``Sense`` -> sonar commands (agent.ormstc_body.look: which sonar, turning first when the
+  cell is behind, a look from the sub-cell beside for a half never seen; ``--sense-mode
+  single`` or a simhw in one-at-a-time mode: one sonar per command), ``Move`` -> turns and
+  one forward step (a bump is ``MoveResult(ok=False)``),
   ``IsAlive`` -> the failure detector's verdict, ``Broadcast`` -> a bus message
   (agent.ormstc_wire), ``Done`` -> status "done" and a "completed" event.
 - Peer messages and the liveness service's deaths become ``PeerMessage`` / ``PeerDied``;
@@ -21,38 +22,24 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-import logging
-import signal
 import sys
 import time
-from typing import cast
 
-from agent.errors import (
-    AgentError,
-    FencedError,
-    GatherTimeoutError,
-    HardwareError,
-    LeaveRequested,
-)
-from agent.ormstc_body import Body
+from agent.errors import GatherTimeoutError, HardwareError
+from agent.lifecycle import AgentLife, run_agent
+from agent.ormstc_body import Body, look
 from agent.ormstc_config import OrmstcConfig, ormstc_config_from_args
 from agent.ormstc_sensing import (
     HEADING_DELTA,
     SonarMap,
     cell_of,
-    cells_in_view,
-    direction_of,
-    direction_to,
-    judge,
-    sensor_for,
 )
 from agent.ormstc_wire import WIRE_TYPES, Inbound, key_for, to_wire
 from bus import keys
 from bus.announce import Announcer
 from bus.bridge import BoundedFifo, Bus, LatestWins
 from bus.codec import encode
-from bus.config import ConnectionSettings, settings_from_args
-from bus.errors import BusError
+from bus.config import settings_from_args
 from bus.liveness import HeartbeatInfo, LivelinessService
 from bus.messages import (
     DeathNotice,
@@ -61,7 +48,6 @@ from bus.messages import (
     OrmstcWire,
     RobotEvent,
     RobotStatus,
-    Sensor,
 )
 from planner.ormstc.machine import OrmstcMachine
 from planner.ormstc.types import (
@@ -77,7 +63,6 @@ from planner.ormstc.types import (
     PeerMessage,
     Request,
     Sense,
-    SenseMode,
     SenseResult,
     SubCell,
     Tick,
@@ -85,15 +70,15 @@ from planner.ormstc.types import (
 
 ALGO = "ormstc"
 STATIC_BUMPS = 3  # bumps into an obstacle (not a body) before the move is hopeless
-LEAVE_FLUSH_S = 0.1
 
 
-class OrmstcAgent:
+class OrmstcAgent(AgentLife):
     """One ORMSTC robot process. ``await agent.run(settings)`` returns the exit code."""
 
     def __init__(self, config: OrmstcConfig) -> None:
         self.config = config
         self.robot = config.robot
+        self.incarnation = config.incarnation
         self.stop = asyncio.Event()
         self.news = asyncio.Event()
         self.machine: OrmstcMachine | None = None
@@ -191,22 +176,8 @@ class OrmstcAgent:
     # --- requests -------------------------------------------------------------------------
 
     async def sense(self, request: Sense) -> SenseResult:
-        assert self.body.pose is not None
-        pos: SubCell = (self.body.pose[0], self.body.pose[1])
-        here = cell_of(pos)
-        target = request.cells[0]
-        if sensor_for(self.body.pose[2], direction_to(here, target)) is None:
-            await self.body.face((self.body.pose[2] + 1) % 4)  # the cell is behind
-        heading = self.body.pose[2]
-        wanted = request.cells if self.config.sense_mode is SenseMode.ALL else (target,)
-        view = cells_in_view(here, heading, wanted)
-        ranges = await self.body.sonar(tuple(cast(Sensor, s) for s in view.values()))
-        for sensor in set(view.values()):
-            self.sonar.record(pos, direction_of(heading, sensor), ranges.get(sensor),
-                              self.may_hold_body)
-        return SenseResult(tuple(
-            (cell, judge(cell, pos, direction_of(heading, sensor), ranges.get(sensor),
-                         self.sonar, self.may_hold_body)) for cell, sensor in view.items()))
+        return await look(self.body, self.sonar, request, self.config.sense_mode,
+                          self.may_hold_body)
 
     async def move(self, to: SubCell) -> bool:
         assert self.body.pose is not None
@@ -305,7 +276,7 @@ class OrmstcAgent:
 
     def _finished(self, done: bool, machine: OrmstcMachine) -> None:
         detail = (f"{machine.moves} moves, {len(machine.mine)} cells, {self.sent} messages, "
-                  f"{self.sent_bytes} bytes")
+                  f"{self.sent_bytes} bytes, {self.sonar.steps} steps to look")
         if done:
             self._status("done")
             self._event("completed", detail=detail)
@@ -325,76 +296,6 @@ class OrmstcAgent:
         await self._drive(self.machine)
         self._say(f"completed after {self.machine.moves} moves")
 
-    # --- the process ----------------------------------------------------------------------
-
-    async def _watch_fence(self) -> None:
-        await self.liveness.fenced.wait()
-        raise FencedError(f"robot {self.robot} incarnation {self.config.incarnation} was "
-                          "declared dead; stopping")
-
-    async def _watch_stop(self) -> None:
-        await self.stop.wait()
-        raise LeaveRequested()
-
-    async def run(self, settings: ConnectionSettings) -> int:
-        loop = asyncio.get_running_loop()
-        for sig in (signal.SIGTERM, signal.SIGINT):
-            with contextlib.suppress(NotImplementedError, RuntimeError):
-                loop.add_signal_handler(sig, self.stop.set)
-        async with Bus.connect(settings) as bus:
-            self._wire(bus)
-            try:
-                async with asyncio.TaskGroup() as group:
-                    background = [group.create_task(self.liveness.run()),
-                                  group.create_task(self.announcer.run()),
-                                  group.create_task(self._watch_fence()),
-                                  group.create_task(self._watch_stop())]
-                    await self._mission()
-                    for task in background:
-                        task.cancel()
-            except BaseExceptionGroup as group:
-                return await self._ending(_main_error(group))
-            self.liveness.leave()
-            await asyncio.sleep(LEAVE_FLUSH_S)
-        return 0
-
-    async def _ending(self, error: BaseException) -> int:
-        self.error = str(error) or type(error).__name__
-        if isinstance(error, LeaveRequested):
-            self._status("left", "SIGTERM/SIGINT")
-            self._event("leaving", detail="asked to stop")
-            self.liveness.leave()
-            code = 0
-        elif isinstance(error, FencedError):
-            self._status("fenced", str(error))
-            self._event("fenced", detail=str(error))
-            code = error.exit_code
-        elif isinstance(error, AgentError):
-            self._status("stopped", str(error))
-            self._event("stopped", detail=str(error))
-            self.liveness.leave()
-            code = error.exit_code
-        else:
-            raise error
-        await asyncio.sleep(LEAVE_FLUSH_S)
-        return code
-
-
-def _main_error(group: BaseExceptionGroup[BaseException]) -> BaseException:
-    """The exception that decides how the process ends (fencing first, then leaving)."""
-    flat = list(_leaves(group))
-    for kind in (FencedError, LeaveRequested, AgentError):
-        for exc in flat:
-            if isinstance(exc, kind):
-                return exc
-    return flat[0]
-
-
-def _leaves(exc: BaseException) -> list[BaseException]:
-    if isinstance(exc, BaseExceptionGroup):
-        return [leaf for inner in exc.exceptions for leaf in _leaves(inner)]
-    return [exc]
-
 
 def run_ormstc(args: argparse.Namespace) -> int:
     """``mstc agent --algo ormstc``: exit codes as for the other algorithms (agent/main.py)."""
@@ -403,14 +304,4 @@ def run_ormstc(args: argparse.Namespace) -> int:
         print(f"mstc agent: error: --id {config.robot} is not below --robots {config.k}",
               file=sys.stderr)
         return 2
-    logging.basicConfig(level=logging.WARNING,
-                        format=f"agent {config.robot} %(levelname)s %(message)s")
-    agent = OrmstcAgent(config)
-    try:
-        code = asyncio.run(agent.run(settings_from_args(args)))
-    except BusError as error:
-        print(f"mstc agent: error: {error}", file=sys.stderr)
-        return 2
-    if code != 0:
-        print(f"mstc agent {config.robot}: error: {agent.error}", file=sys.stderr)
-    return code
+    return run_agent(OrmstcAgent(config), settings_from_args(args))

@@ -3,8 +3,11 @@
 simhw's sonar is a thin ray along one of the four headings from the body's own sub-cell
 (docs/simhw.md), so it crosses one row (or column) of a neighbouring cell: the two sub-cells
 at distance ``near`` and ``near + 1``, where ``near`` is 1 or 2 depending on how many of the
-robot's own sub-cells lie ahead. Whatever the ray shows is remembered in a :class:`SonarMap`;
-the other half of the cell is judged from that memory (unseen sub-cells count as free).
+robot's own sub-cells lie ahead. Whatever a ray shows is remembered in a :class:`SonarMap`;
+the other half of the cell is judged from that memory, and when a sub-cell of it was never
+seen free the cell is *unknown* (``judge`` gives None), never FREE: an obstacle that fills
+only part of a cell may lie there. The other half is seen by the same ray from the sub-cell
+beside the robot in its own cell (``beside``), which agent.ormstc_body steps to.
 
 A blocked sub-cell is a robot body or a static obstacle; the ray cannot tell which. Bodies
 only stand in cells their robot owns or is claiming, and ownership is announced before a body
@@ -32,7 +35,7 @@ def cell_of(sub: SubCell) -> Cell:
 
 
 def direction_to(cell: Cell, other: Cell) -> int:
-    """The heading of the step from ``cell`` to the 4-adjacent ``other``."""
+    """The heading of the step from ``cell`` to the 4-adjacent ``other`` (cells or sub-cells)."""
     delta = (other[0] - cell[0], other[1] - cell[1])
     if delta not in HEADING_DELTA:
         raise ValueError(f"cell {other} is not next to cell {cell}")
@@ -73,6 +76,13 @@ class SonarMap:
     max_range: int = 8
     free: set[SubCell] = field(default_factory=set)
     static: set[SubCell] = field(default_factory=set)  # obstacles for certain
+    # what looking cost (agent.ormstc_body.look counts): sonar readings, looks from the
+    # sub-cell beside, the forward steps they made (two each unless a body was in the way)
+    # and the quarter turns made only to look
+    readings: int = 0
+    beside_looks: int = 0
+    steps: int = 0
+    turns: int = 0
 
     def record(self, pos: SubCell, direction: int, reading: int | None,
                may_hold_body: BodyTest) -> SubCell | None:
@@ -90,22 +100,35 @@ class SonarMap:
 
 
 def judge(cell: Cell, pos: SubCell, direction: int, reading: int | None, sonar: SonarMap,
-          may_hold_body: BodyTest) -> CellStatus:
-    """Status of the neighbouring ``cell`` from a ray along ``direction`` read at ``pos``.
+          may_hold_body: BodyTest) -> CellStatus | None:
+    """Status of the neighbouring ``cell`` from a ray along ``direction`` read at ``pos``
+    (already recorded in ``sonar``); None while a sub-cell of the unseen half is unknown.
 
     The ray's half decides first (a hit inside the cell: obstacle or body, see the module
-    doc); the unseen half is an obstacle only if a ray once showed a static obstacle there
-    and no body can be in the cell.
+    doc). The cell is FREE only if every one of its sub-cells was once seen free — a static
+    world never blocks a sub-cell a ray has passed through. The unseen half is an obstacle
+    if a ray once showed a static obstacle there and no body can be in the cell.
     """
     near = near_distance(pos, direction)
     if reading is not None and reading < near:
         return CellStatus.ROBOT  # something inside the robot's own cell can only be a body
     if reading is not None and reading <= near + 1:
         return CellStatus.ROBOT if may_hold_body(cell) else CellStatus.OBSTACLE
+    subs = sub_cells(cell)
+    if all(sub in sonar.free for sub in subs):
+        return CellStatus.FREE
     # a remembered hit in a cell someone owned or claimed may have been a body since gone
-    if not may_hold_body(cell) and any(sub in sonar.static for sub in sub_cells(cell)):
+    if not may_hold_body(cell) and any(sub in sonar.static for sub in subs):
         return CellStatus.OBSTACLE
-    return CellStatus.FREE
+    return None
+
+
+def beside(pos: SubCell, direction: int) -> SubCell:
+    """The sub-cell of ``pos``'s cell next to ``pos`` whose ray along ``direction`` crosses
+    the other half of the neighbouring cell (the other row or column of the cell)."""
+    if direction % 2 == 0:  # N / S: the rays run along columns
+        return (pos[0], pos[1] ^ 1)
+    return (pos[0] ^ 1, pos[1])
 
 
 def cells_in_view(cell: Cell, heading: int, wanted: Iterable[Cell]) -> dict[Cell, str]:
