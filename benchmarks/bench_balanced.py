@@ -4,6 +4,7 @@
     .venv/bin/python benchmarks/bench_balanced.py --seeds 3 --ks 10,30
     .venv/bin/python benchmarks/bench_balanced.py --failures 5    # plus takeover replays
     .venv/bin/python benchmarks/bench_balanced.py --plot docs/img/balanced_regions.png
+    .venv/bin/python benchmarks/bench_balanced.py --obstacles 80 --ks 20,30 --per-instance
 
 Instances are generated from the seed: a rows x cols coarse grid (default 20 x 30, 2400
 sub-cells), with --obstacles random blocked cells, and k robots at distinct random sub-cells
@@ -146,6 +147,8 @@ def main() -> None:
     parser.add_argument("--failures", type=int, default=0,
                         help="also replay the balanced plans with this many failures")
     parser.add_argument("--plot", metavar="OUT.png", help="draw two instances and stop")
+    parser.add_argument("--per-instance", action="store_true",
+                        help="also list the balanced planner's moves over LB per seed")
     args = parser.parse_args()
     if args.plot:
         plot(args.plot, args.rows, args.cols)
@@ -162,6 +165,9 @@ def main() -> None:
             tag = f"obstacles {obstacles}, k {k}"
             row, plans = measure(lambda a, s: balanced_plan(a, seed=s), areas)
             print(row.line(f"balanced ({tag})"), flush=True)
+            if args.per_instance:
+                extra = [m - b for m, b in zip(row.makespans, row.bounds, strict=True)]
+                notes.append(f"{tag}: moves over LB by seed: {' '.join(map(str, extra))}")
             if not args.no_contrast:
                 print(measure(opt_mstc, areas)[0].line(f"opt-MSTC random tree ({tag})"),
                       flush=True)

@@ -18,6 +18,8 @@ import itertools
 from collections import deque
 from dataclasses import dataclass
 
+import numpy as np
+
 from planner.balanced.reshape import reshape_pairs
 from planner.balanced.seeds import near_half
 from planner.balanced.state import SHARED, PartitionState
@@ -140,7 +142,7 @@ def _find_chain(state: PartitionState, donor: int, unit: int,
     queue = deque([donor])
     while queue:
         x = queue.popleft()
-        for y in sorted({state.label[m.anchor] for m in _moves(state, x, None, unit)}):
+        for y in _takers(state, x, unit):
             if y in parent or (x, y) in blocked:
                 continue
             parent[y] = x
@@ -151,6 +153,20 @@ def _find_chain(state: PartitionState, donor: int, unit: int,
                 return chain[::-1]
             queue.append(y)
     return None
+
+
+def _takers(state: PartitionState, giver: int, unit: int) -> list[int]:
+    """Regions ``giver`` can pass ``unit`` to now (cached until the partition changes).
+
+    Failed chain searches repeat for every largest region and retry; the cache makes the
+    repeats cheap.
+    """
+    hit = state.takers.get((giver, unit))
+    if hit is not None and hit[0] == state.version:
+        return hit[1]
+    found = sorted({state.label[m.anchor] for m in _moves(state, giver, None, unit)})
+    state.takers[(giver, unit)] = (state.version, found)
+    return found
 
 
 def _execute(state: PartitionState, chain: list[int], unit: int) -> tuple[int, int] | None:
@@ -200,23 +216,23 @@ def _relieve(state: PartitionState) -> bool:
     loads, so the balancing loop still terminates.
     """
     best: tuple[int, int, int, list[int]] | None = None
+    offers = _offers(state)
     low = min(state.load)
-    for giver in sorted(range(state.k), key=lambda r: -state.load[r]):
-        if len(state.whole[giver]) < 2 or state.load[giver] - low <= WHOLE:
+    for giver in sorted(offers, key=lambda r: (-state.load[r], r)):
+        spread = state.load[giver] - low
+        if best is not None and spread * spread <= 4 * best[0]:
+            break  # gain = amount * gap <= (spread / 2) ** 2, and givers come largest first
+        if len(state.whole[giver]) < 2:
             continue
         cut = state.cut_cells(giver)
-        for u in state.whole[giver]:
+        for u, takers in sorted(offers[giver].items()):
             if state.pinned(u):
-                continue
-            takers = {y for y in (state.label[v] for v in state.neighbours[u])
-                      if y >= 0 and y != giver and state.load[y] + WHOLE < state.load[giver]}
-            if not takers:
                 continue
             piece = _piece(state, giver, u) if u in cut else [u]
             if not piece:
                 continue
             amount = WHOLE * len(piece)
-            for y in takers:
+            for y in sorted(takers):
                 gap = state.load[giver] - state.load[y] - amount
                 gain = amount * gap
                 if gap > 0 and (best is None or gain > best[0]):
@@ -228,6 +244,25 @@ def _relieve(state: PartitionState) -> bool:
         state.release(giver, u)
         state.claim(taker, u)
     return True
+
+
+def _offers(state: PartitionState) -> dict[int, dict[int, set[int]]]:
+    """Giver -> its whole cells -> neighbouring regions smaller by more than a cell.
+
+    One vectorised pass over all neighbouring cell pairs (numpy) instead of a Python scan of
+    every region's cells: the relieve move runs hundreds of times on a stalled partition.
+    """
+    label = np.asarray(state.label, dtype=np.int64)
+    load = np.asarray(state.load, dtype=np.int64)
+    own = label[state.edge_src]
+    other = label[state.edge_dst]
+    mask = (own >= 0) & (other >= 0) & (own != other)
+    mask[mask] &= load[other[mask]] + WHOLE < load[own[mask]]
+    offers: dict[int, dict[int, set[int]]] = {}
+    for u, giver, y in zip(state.edge_src[mask].tolist(), own[mask].tolist(),
+                           other[mask].tolist(), strict=True):
+        offers.setdefault(giver, {}).setdefault(u, set()).add(y)
+    return offers
 
 
 def _piece(state: PartitionState, robot: int, u: int) -> list[int]:

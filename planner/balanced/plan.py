@@ -22,8 +22,8 @@ def balanced_plan(area: WorkArea, *, seed: int = 0) -> Plan:
 
     Robot r walks ``size_r - 1`` moves and no sub-cell is visited twice; with the regions as
     balanced as the map allows the makespan is at most the lower bound ceil(n/k) - 1 plus
-    one (regions hold an even number of sub-cells). A robot boxed in by others' starts may
-    first walk out to a region elsewhere (a note starting with WALK_OUT says so; the walk
+    one (regions hold an even number of sub-cells). A robot boxed in or squeezed by others'
+    starts may first walk to a region elsewhere (a note starting with WALK_OUT says so; the walk
     out crosses sub-cells that other robots cover too). ``plan.cycle`` is an STC cycle of the
     whole area (a Kruskal tree from ``seed``): it gives each robot a ring position
     (``start_index``) for the takeover order; the robots do not walk it, so ``legs`` are
@@ -54,6 +54,6 @@ def balanced_plan(area: WorkArea, *, seed: int = 0) -> Plan:
              f"{parts.transfers} balancing moves"]
     if routes:
         moves = ", ".join(f"robot {r}: {len(w) - 1}" for r, w in sorted(routes.items()))
-        notes.append(f"{WALK_OUT}: robots boxed in by others' starts walk out to their "
-                     f"regions first ({moves} moves), over sub-cells others cover too")
+        notes.append(f"{WALK_OUT}: robots boxed in or squeezed by others' starts walk to "
+                     f"their regions first ({moves} moves), over sub-cells others cover too")
     return Plan(algo=ALGO, cycle=cycle, robots=tuple(robots), tree=None, notes=tuple(notes))

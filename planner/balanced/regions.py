@@ -6,15 +6,18 @@ cells and half-cell leaves the largest region reaches 2 * ceil(n / 2k) sub-cells
 map's shape allows. A robot boxed in by other robots' start cells (a dead end sealed by a
 neighbour's start) can be sent out first: ``escape_routes`` finds its way to the nearest
 cell it could own, and a second partition seeds it there, its load counting the walk out.
+Robots squeezed into strips by neighbours that start beside them are moved the same way to
+roomier seeds a few cells off (relocate.py), greedily, while that lowers the largest load.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from planner.balanced.balance import balance
 from planner.balanced.growth import grow, seed_regions, unclaimed
+from planner.balanced.relocate import relocation_routes, squeezed, sub_cell_route
 from planner.balanced.state import PartitionState, articulation_points
 from planner.balanced.types import Partition
 from planner.balanced.voronoi import adopt, voronoi_labels
@@ -22,6 +25,8 @@ from planner.grid import WorkArea, cell_of, sub_cells_of
 from planner.types import SubCell
 
 BOXED_SHORTFALL = 8  # sub-cells (two cells) below the best size before a robot is sent out
+RELOCATION_RADII = (5, 8, 3)  # cells a squeezed robot may walk to a new seed, in turn
+MAX_PARTITIONS = 4  # partitions per plan at most (each 0.03-0.15 s of CPU at k = 30)
 
 
 def partition(area: WorkArea, *, seed: int = 0, starts: Sequence[SubCell] | None = None,
@@ -52,33 +57,85 @@ def plan_regions(area: WorkArea, *, seed: int = 0
                  ) -> tuple[Partition | None, dict[int, tuple[SubCell, ...]]]:
     """The partition to plan with, and the walks out for robots that start outside theirs.
 
-    Stuck robots (see escape_routes) are sent out and the area partitioned again with them
-    seeded at their targets; the second partition is kept only if its largest load (walk
-    out included) is smaller.
+    When balancing stalls, robots are sent out and the area partitioned again with them
+    seeded elsewhere, their loads counting the walk: squeezed robots moved to roomier seeds
+    a few cells away (relocate.py, one radius per try), or boxed-in robots walked out to the
+    nearest open cell (escape_routes). A new partition is kept only if its largest load
+    (walk included) is smaller, and later tries start from the best so far; at most
+    MAX_PARTITIONS partitions are made in all.
     """
     state = _partition_state(area, seed, None, None)
     if state is None:
         return None, {}
-    routes = escape_routes(area, state)
-    if routes:
+    goal = _ideal(state)
+    best = state
+    best_routes: dict[int, tuple[SubCell, ...]] = {}
+    made = 1
+    tried: set[frozenset[tuple[int, SubCell]]] = set()
+    while made < MAX_PARTITIONS and max(best.load) > goal:
+        for routes in _route_sets(area, best, best_routes):
+            key = frozenset((r, w[-1]) for r, w in routes.items())
+            if key not in tried:
+                break
+        else:
+            break
+        tried.add(key)
+        made += 1
         starts = [routes[r][-1] if r in routes else s for r, s in enumerate(area.starts)]
         offsets = [len(routes[r]) - 1 if r in routes else 0 for r in range(state.k)]
         again = _partition_state(area, seed, starts, offsets)
-        if again is not None and max(again.load) < max(state.load):
-            return again.to_partition(again.transfers), routes
-    return state.to_partition(state.transfers), {}
+        if again is not None and max(again.load) < max(best.load):
+            best, best_routes = again, routes
+    return best.to_partition(best.transfers), best_routes
 
 
-def escape_routes(area: WorkArea, state: PartitionState) -> dict[int, tuple[SubCell, ...]]:
+def _ideal(state: PartitionState) -> int:
+    """The average load rounded up to an even number of sub-cells: balancing stops there."""
+    ideal = -(-sum(state.load) // state.k)
+    return ideal + ideal % 2
+
+
+def _route_sets(area: WorkArea, state: PartitionState, routes: dict[int, tuple[SubCell, ...]]
+                ) -> Iterator[dict[int, tuple[SubCell, ...]]]:
+    """Candidate walk sets: boxed-in robots out, squeezed ones moved (one radius per set).
+
+    A boxed-in robot (its region touches only others' pinned cells) walks to the nearest
+    open cell (escape_routes); the other squeezed robots go to roomier seeds (relocate.py).
+    """
+    boxed = [r for r in _boxed(state) if r not in routes]
+    base = {**routes, **escape_routes(area, state, boxed)} if boxed else dict(routes)
+    robots = [r for r in squeezed(state) if r not in base]
+    seeds = [base[r][-1] if r in base else s for r, s in enumerate(area.starts)]
+    for radius in RELOCATION_RADII:
+        found = relocation_routes(area, state, robots, radius, seeds) if robots else {}
+        if found or len(base) > len(routes):
+            yield {**base, **found}
+
+
+def _boxed(state: PartitionState) -> list[int]:
+    """Robots whose region touches no cell it could ever take (only others' pinned cells)."""
+    out = []
+    for robot in range(state.k):
+        own = state.whole[robot] or {state.flat(cell_of(state.starts[robot]))}
+        around = {v for u in own for v in state.neighbours[u] if v not in own}
+        if around and all(state.pinned(v) or state.label[v] < 0 for v in around):
+            out.append(robot)
+    return out
+
+
+def escape_routes(area: WorkArea, state: PartitionState, robots: Sequence[int] | None = None
+                  ) -> dict[int, tuple[SubCell, ...]]:
     """Walks (start first) that take stuck robots out to a cell they could own, by robot.
 
     A robot is stuck when its region, after balancing, is still at least BOXED_SHORTFALL
     sub-cells below the average: typically it starts in a dead end sealed by a neighbour's
     start cell. Its target is the nearest cell that is no start cell and no articulation
     cell of the whole area (one inside a corridor would box the neighbour in instead).
+    ``robots`` limits the walks to those robots (when stuck).
     """
     best = -(-sum(state.load) // state.k)
-    stuck = [r for r in range(state.k) if state.load[r] + BOXED_SHORTFALL <= best]
+    stuck = [r for r in range(state.k) if state.load[r] + BOXED_SHORTFALL <= best
+             and (robots is None or r in robots)]
     if not stuck:
         return {}
     area_cells = {u for u, free in enumerate(state.free) if free}
@@ -89,7 +146,7 @@ def escape_routes(area: WorkArea, state: PartitionState) -> dict[int, tuple[SubC
         target = _nearest_open_cell(state, robot, avoid)
         if target is None:
             continue
-        route = _sub_cell_route(area, area.starts[robot], set(sub_cells_of(state.cell(target))))
+        route = sub_cell_route(area, area.starts[robot], set(sub_cells_of(state.cell(target))))
         if route is not None:
             routes[robot] = route
             avoid.add(target)
@@ -110,26 +167,3 @@ def _nearest_open_cell(state: PartitionState, robot: int, avoid: set[int]) -> in
                 seen.add(v)
                 queue.append(v)
     return None
-
-
-def _sub_cell_route(area: WorkArea, start: SubCell, goal: set[SubCell]
-                    ) -> tuple[SubCell, ...] | None:
-    """A shortest 4-connected walk over the area's sub-cells from start into ``goal``."""
-    free = area.sub_cells
-    h, w = free.shape
-    parent: dict[SubCell, SubCell] = {start: start}
-    queue = deque([start])
-    while queue:
-        at = queue.popleft()
-        if at in goal:
-            path = [at]
-            while path[-1] != start:
-                path.append(parent[path[-1]])
-            return tuple(path[::-1])
-        r, c = at
-        for nxt in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
-            if 0 <= nxt[0] < h and 0 <= nxt[1] < w and free[nxt] and nxt not in parent:
-                parent[nxt] = at
-                queue.append(nxt)
-    return None
-

@@ -87,12 +87,15 @@ def _ball(state: PartitionState, union: set[int], grower: int, other: int,
     ball = {source}
     rest = union - ball
     while len(ball) < size:
-        cut = articulation_points(rest, state.neighbours)
+        cut: set[int] | None = None  # exact cut cells of rest, only if the local test fails
         frontier = sorted({v for u in ball for v in state.neighbours[u]
                            if v in rest and v not in blocked},
                           key=lambda v: (not state.pinned(v), rank[v]))
         for v in frontier:
-            swallow = {v} if v not in cut else _cut_off(state, rest, v, keep, blocked)
+            if not state.locally_removable_from(rest, v) and cut is None:
+                cut = articulation_points(rest, state.neighbours)
+            plain = cut is None or v not in cut
+            swallow = {v} if plain else _cut_off(state, rest, v, keep, blocked)
             if swallow and len(ball) + len(swallow) <= size:
                 ball |= swallow
                 rest -= swallow

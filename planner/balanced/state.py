@@ -40,6 +40,10 @@ class PartitionState:
             for rr, cc in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
                 if 0 <= rr < h and 0 <= cc < w and free[rr * w + cc]:
                     self.neighbours[u].append(rr * w + cc)
+        # every ordered pair of neighbouring free cells, for vectorised boundary scans
+        self.edge_src = np.asarray([u for u, vs in enumerate(self.neighbours) for _ in vs],
+                                   dtype=np.int64)
+        self.edge_dst = np.asarray([v for vs in self.neighbours for v in vs], dtype=np.int64)
         self.label: list[int] = [UNCLAIMED] * (h * w)
         self.whole: list[set[int]] = [set() for _ in range(self.k)]
         self.leaves: list[list[LeafCell]] = [[] for _ in range(self.k)]
@@ -48,6 +52,9 @@ class PartitionState:
         self.pins: dict[int, int] = {}
         self._cut: dict[int, set[int]] = {}
         self.pieces: dict[int, dict[int, list[int]]] = {}  # balance._piece cache
+        # balance._takers cache: (robot, unit) -> (version it was computed at, takers)
+        self.takers: dict[tuple[int, int], tuple[int, list[int]]] = {}
+        self.version = 0  # bumped by every change
         self._log: list[Callable[[], None]] | None = None
         self.transfers = 0
 
@@ -77,6 +84,7 @@ class PartitionState:
             undo()
 
     def _record(self, undo: Callable[[], None]) -> None:
+        self.version += 1
         if self._log is not None:
             self._log.append(undo)
 
@@ -148,13 +156,20 @@ class PartitionState:
         cannot disconnect them. A sufficient test only (a loop round a hole is missed), so
         callers fall back to cut_cells when it says no.
         """
+        return self._ring_test(u, lambda v: self.label[v] == robot)
+
+    def locally_removable_from(self, cells: set[int], u: int) -> bool:
+        """locally_removable for any set of cells (``u`` in it): a sufficient no-cut test."""
+        return self._ring_test(u, cells.__contains__)
+
+    def _ring_test(self, u: int, inside: Callable[[int], bool]) -> bool:
         w = self.width
         r, c = divmod(u, w)
         h = len(self.label) // w
         ring = []
         for dr, dc in ((-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1), (0, -1)):
             rr, cc = r + dr, c + dc
-            ring.append(0 <= rr < h and 0 <= cc < w and self.label[rr * w + cc] == robot)
+            ring.append(0 <= rr < h and 0 <= cc < w and inside(rr * w + cc))
         if not any(ring[1::2]):
             return False
         return all(ring) or _side_runs(ring) == 1
