@@ -24,6 +24,8 @@ import asyncio
 import contextlib
 import sys
 import time
+from collections.abc import Callable
+from typing import Any
 
 from agent.errors import GatherTimeoutError, HardwareError
 from agent.lifecycle import AgentLife, run_agent
@@ -34,7 +36,7 @@ from agent.ormstc_sensing import (
     SonarMap,
     cell_of,
 )
-from agent.ormstc_wire import WIRE_TYPES, Inbound, key_for, to_wire
+from agent.ormstc_wire import WIRE_TYPES, Inbound, TreeBook, key_for, to_wire
 from bus import keys
 from bus.announce import Announcer
 from bus.bridge import BoundedFifo, Bus, LatestWins
@@ -42,6 +44,7 @@ from bus.codec import encode
 from bus.config import settings_from_args
 from bus.liveness import HeartbeatInfo, LivelinessService
 from bus.messages import (
+    AgentState,
     DeathNotice,
     EventKind,
     Heartbeat,
@@ -72,6 +75,18 @@ ALGO = "ormstc"
 STATIC_BUMPS = 3  # bumps into an obstacle (not a body) before the move is hopeless
 
 
+class _StateAnnouncer(Announcer):
+    """The bus Announcer plus the agent's AgentState in every state reply."""
+
+    def __init__(self, bus: Bus, key: str, period: float,
+                 state: Callable[[], AgentState]) -> None:
+        super().__init__(bus, key, period=period)
+        self._state_message = state
+
+    def messages(self) -> list[Any]:
+        return [*super().messages(), self._state_message()]
+
+
 class OrmstcAgent(AgentLife):
     """One ORMSTC robot process. ``await agent.run(settings)`` returns the exit code."""
 
@@ -94,6 +109,7 @@ class OrmstcAgent(AgentLife):
         self.error = ""
         self._static_bumps = 0
         self._t0 = time.monotonic()
+        self.book = TreeBook()
 
     # --- plumbing -------------------------------------------------------------------------
 
@@ -111,7 +127,8 @@ class OrmstcAgent(AgentLife):
         self.liveness = LivelinessService(
             bus, self.robot, c.incarnation, heartbeat_period=c.heartbeat_period,
             timeout=c.dead_after, info=self._heartbeat_info, on_death=self._on_death)
-        self.announcer = Announcer(bus, keys.state(m, self.robot), period=c.announce_period)
+        self.announcer = _StateAnnouncer(bus, keys.state(m, self.robot), c.announce_period,
+                                         self.state_message)
         bus.subscribe(keys.all_ormstc(m), WIRE_TYPES, self._on_ormstc, BoundedFifo(65536))
         bus.subscribe(keys.all_statuses(m), RobotStatus, self._on_status, LatestWins())
         bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
@@ -127,6 +144,7 @@ class OrmstcAgent(AgentLife):
     def _on_ormstc(self, key: str, wire: OrmstcWire) -> None:
         msg = self.inbound.accept(key, wire)
         if msg is not None:
+            self.book.heard(wire)
             self._wake(PeerMessage(wire.robot, msg))
 
     def _on_status(self, key: str, status: RobotStatus) -> None:
@@ -149,6 +167,16 @@ class OrmstcAgent(AgentLife):
             return  # it left after the mission was over for it: nothing to take over
         self._wake(PeerDied(robot))
 
+    def state_message(self) -> AgentState:
+        """The state reply: what a late joiner cannot hear again (tree edges, claims)."""
+        machine = self.machine
+        drops = {f"{kind}.{why}": n for (kind, why), n in self.bus.drops.snapshot().items()}
+        return AgentState(
+            robot=self.robot, incarnation=self.config.incarnation, state=self.state,
+            moves=machine.moves if machine else 0, n=0, covered=b"",
+            dead=tuple(sorted(self.dead)), took_over=(), drops=drops,
+            tree=tuple(self.book.tree), claims=tuple(self.book.claims))
+
     def _status(self, state: str, message: str = "") -> None:
         self.state = state
         if self.start is not None:
@@ -162,6 +190,7 @@ class OrmstcAgent(AgentLife):
     def _broadcast(self, request: Broadcast) -> None:
         self.sent += 1
         wire = to_wire(request.message, self.config.incarnation, self.sent)
+        self.book.sent(wire)
         self.sent_bytes += len(encode(wire))
         self.bus.publish(key_for(self.bus.mission, wire), wire)
         if isinstance(request.message, DeadRobotMsg):  # for monitors and mstc up's summary

@@ -18,6 +18,7 @@ from bus import keys
 from bus.drops import DropCounter
 from bus.messages import (
     ORMSTC_MESSAGES,
+    Cell,
     OrmstcClaim,
     OrmstcCompletion,
     OrmstcConnection,
@@ -128,3 +129,29 @@ class Inbound:
     def _peers_out_of_range(self, wire: OrmstcWire) -> bool:
         other = getattr(wire, "dead", getattr(wire, "peer", None))
         return other is not None and not 0 <= other < self.k
+
+
+@dataclass
+class TreeBook:
+    """This robot's ORMSTC tree edges and unsettled claims, as it said them on the wire, for
+    its state replies: ORMSTC messages are said once, so a late joiner learns them here."""
+
+    tree: list[tuple[Cell, Cell]] = field(default_factory=list)
+    claims: dict[Cell, None] = field(default_factory=dict)  # insertion-ordered set
+    owners: dict[Cell, int] = field(default_factory=dict)  # peers' cells, as heard
+
+    def sent(self, wire: OrmstcWire) -> None:
+        if isinstance(wire, OrmstcClaim) and wire.cell not in self.owners:
+            self.claims[wire.cell] = None
+        elif isinstance(wire, OrmstcTreeEdge):
+            self.tree.append((wire.parent, wire.child))
+            self.claims.pop(wire.child, None)
+
+    def heard(self, wire: OrmstcWire) -> None:
+        """A peer's tree edge settles our claim on its child cell (we lost it); a dead
+        robot's cells are free again."""
+        if isinstance(wire, OrmstcTreeEdge):
+            self.owners[wire.child] = wire.robot
+            self.claims.pop(wire.child, None)
+        elif isinstance(wire, OrmstcDeadRobot):
+            self.owners = {c: r for c, r in self.owners.items() if r != wire.dead}

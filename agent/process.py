@@ -132,7 +132,8 @@ class Agent(AgentLife):
             n=machine.cycle.n if machine else 0,
             covered=pack_covered(machine.covered) if machine else b"",
             dead=tuple(sorted(self.peers.dead)),
-            took_over=tuple(self.runner.took_over) if self.runner else (), drops=drops)
+            took_over=tuple(self.runner.took_over) if self.runner else (), drops=drops,
+            tree_kind=self.config.tree, seed=self.config.seed)
 
     def _status(self, state: str, message: str = "") -> None:
         if self.start is None:

@@ -1,20 +1,15 @@
-"""Value types of the agent: its configuration and the state message it answers queries with.
-
-``AgentState`` is registered with the bus codec like every other wire message; it travels
-only as a reply on the agent's ``state/<r>`` queryable (never published), so subscribers of
-the documented keys never see it. Import agent.types to decode it (monitors, tests).
+"""Value types of the agent: its configuration. The state message it answers queries with,
+``AgentState`` (and ``pack_covered``/``unpack_covered``), lives in bus.messages so that
+monitors decode it without importing agent code; it is re-exported here for old imports.
 """
 
 from __future__ import annotations
 
-import zlib
-from dataclasses import dataclass, field
-from typing import ClassVar
+from dataclasses import dataclass
 
-import numpy as np
+from bus.messages import AgentState, pack_covered, unpack_covered
 
-from bus.messages import message
-from planner.types import BoolArray
+__all__ = ["AgentConfig", "AgentState", "pack_covered", "unpack_covered"]
 
 DEFAULT_START_TIMEOUT = 30.0
 DEFAULT_ANNOUNCE_PERIOD = 0.5
@@ -40,38 +35,3 @@ class AgentConfig:
     announce_period: float = DEFAULT_ANNOUNCE_PERIOD
     hw_timeout: float = DEFAULT_HW_TIMEOUT
     linger: float = DEFAULT_LINGER
-
-
-@message
-@dataclass(frozen=True)
-class AgentState:
-    """An agent's re-learnable knowledge: its phase, its moves, every cycle index it knows
-    covered (``pack_covered``: bits in cycle-index order), the robots it knows dead, the
-    robots it took over and its drop counters ("kind.reason" -> count)."""
-
-    KIND: ClassVar[str] = "agent_state"
-    robot: int
-    incarnation: int
-    state: str
-    moves: int
-    n: int
-    covered: bytes
-    dead: tuple[int, ...]
-    took_over: tuple[int, ...]
-    drops: dict[str, int] = field(default_factory=dict)
-
-
-def pack_covered(covered: BoolArray) -> bytes:
-    """Bits, then zlib: coverage is long runs, so even a 10^6-sub-cell map fits a message."""
-    return zlib.compress(np.packbits(covered.astype(bool)).tobytes())
-
-
-def unpack_covered(data: bytes, n: int) -> BoolArray:
-    """The bool array of ``n`` packed by pack_covered; ValueError if ``data`` is not one."""
-    try:
-        raw = np.frombuffer(zlib.decompress(data), dtype=np.uint8)
-    except zlib.error as error:
-        raise ValueError(f"coverage bits do not decompress: {error}") from error
-    if raw.size * 8 < n:
-        raise ValueError(f"{raw.size} bytes cannot hold {n} bits")
-    return np.unpackbits(raw, count=n).astype(bool)

@@ -19,7 +19,7 @@ from typing import Any, ClassVar, Literal, TypeVar
 import numpy as np
 import numpy.typing as npt
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims
 
 Pose = tuple[int, int, int]
 SubCell = tuple[int, int]
@@ -238,11 +238,17 @@ class RobotTruth:
     covered: int
 
 
+NO_ROBOT = 255  # "nobody" in the packed per-sub-cell and per-edge robot arrays
+
+
 @message
 @dataclass(frozen=True)
 class WorldState:
     """The whole world for a monitor. ``free`` is numpy.packbits of the row-major free mask;
-    ``visits`` is zlib-compressed uint8 visit counts (saturating at 255), row-major."""
+    ``visits`` is zlib-compressed uint8 visit counts (saturating at 255), row-major;
+    ``first`` the same for the robot that entered each sub-cell first (255: nobody);
+    ``crossed`` the same for the first robot to cross each border between 2 x 2 cells:
+    the ``right`` then the ``down`` array over cells (planner.types.SpanningTree's layout)."""
 
     KIND: ClassVar[str] = "world"
     map_name: str
@@ -252,21 +258,39 @@ class WorldState:
     robots: tuple[RobotTruth, ...]
     sim_time: float
     time_scale: float
+    first: bytes
+    crossed: bytes
+
+
+RobotArray = npt.NDArray[np.uint8]
 
 
 def make_world_state(
     map_name: str, free: npt.NDArray[np.bool_], visits: npt.NDArray[np.integer[Any]],
-    robots: tuple[RobotTruth, ...], sim_time: float, time_scale: float,
+    robots: tuple[RobotTruth, ...], sim_time: float, time_scale: float, *,
+    first: RobotArray | None = None, crossed: tuple[RobotArray, RobotArray] | None = None,
 ) -> WorldState:
-    """Pack a free mask and visit-count array (same 2-D shape) into a WorldState."""
+    """Pack a free mask, visit counts and first visitors (same 2-D shape; robot ids < 255)
+    and the first crossers of cell borders into a WorldState; omitted arrays mean nobody."""
     if free.shape != visits.shape or free.ndim != 2:
         raise ValueError("free and visits must be 2-D arrays of the same shape")
+    h, w = free.shape
+    firsts = np.full(free.shape, NO_ROBOT, np.uint8) if first is None else first
+    right, down = crossed if crossed is not None else (
+        np.full((h // 2, max(w // 2 - 1, 0)), NO_ROBOT, np.uint8),
+        np.full((max(h // 2 - 1, 0), w // 2), NO_ROBOT, np.uint8))
+    if firsts.shape != free.shape or right.shape != (h // 2, max(w // 2 - 1, 0)) \
+            or down.shape != (max(h // 2 - 1, 0), w // 2):
+        raise ValueError("first must have the map's shape, crossed the cells' border shapes")
     counts = np.clip(visits, 0, 255).astype(np.uint8)
     return WorldState(
-        map_name=map_name, shape=(int(free.shape[0]), int(free.shape[1])),
+        map_name=map_name, shape=(int(h), int(w)),
         free=np.packbits(free.astype(bool), axis=None).tobytes(),
         visits=zlib.compress(counts.tobytes()), robots=robots,
-        sim_time=float(sim_time), time_scale=float(time_scale))
+        sim_time=float(sim_time), time_scale=float(time_scale),
+        first=zlib.compress(firsts.astype(np.uint8).tobytes()),
+        crossed=zlib.compress(right.astype(np.uint8).tobytes()
+                              + down.astype(np.uint8).tobytes()))
 
 
 def world_free(state: WorldState) -> npt.NDArray[np.bool_]:
@@ -278,8 +302,75 @@ def world_free(state: WorldState) -> npt.NDArray[np.bool_]:
 
 def world_visits(state: WorldState) -> npt.NDArray[np.uint8]:
     """The visit counts of a WorldState as a uint8 array of ``state.shape``."""
-    raw = np.frombuffer(zlib.decompress(state.visits), dtype=np.uint8)
-    return raw.reshape(state.shape)
+    return _unzip(state.visits, state.shape[0] * state.shape[1]).reshape(state.shape)
+
+
+def world_first(state: WorldState) -> RobotArray:
+    """Who entered each sub-cell first (NO_ROBOT: nobody yet), an array of ``state.shape``."""
+    return _unzip(state.first, state.shape[0] * state.shape[1]).reshape(state.shape)
+
+
+def world_crossed(state: WorldState) -> tuple[RobotArray, RobotArray]:
+    """The first crossers of cell borders as (right, down) arrays (NO_ROBOT: nobody)."""
+    h, w = state.shape[0] // 2, state.shape[1] // 2
+    n_right, n_down = h * max(w - 1, 0), max(h - 1, 0) * w
+    raw = _unzip(state.crossed, n_right + n_down)
+    return (raw[:n_right].reshape(h, max(w - 1, 0)), raw[n_right:].reshape(max(h - 1, 0), w))
+
+
+def _unzip(data: bytes, size: int) -> npt.NDArray[np.uint8]:
+    """ValueError (not a zlib error) for a payload that does not unpack to ``size`` bytes."""
+    try:
+        raw = np.frombuffer(zlib.decompress(data), dtype=np.uint8)
+    except zlib.error as error:
+        raise ValueError(f"packed array does not decompress: {error}") from error
+    if raw.size != size:
+        raise ValueError(f"packed array has {raw.size} bytes, expected {size}")
+    return raw
+
+
+# --- agents' state replies ----------------------------------------------------------------
+
+@message
+@dataclass(frozen=True)
+class AgentState:
+    """An agent's re-learnable knowledge, the reply of its ``state/<r>`` queryable (never
+    published): its phase, its moves, every cycle index it knows covered (``pack_covered``:
+    bits in cycle-index order; offline algorithms), the robots it knows dead, the robots it
+    took over, its drop counters ("kind.reason" -> count), for ORMSTC its tree edges
+    (parent, child) and its claims not settled yet (cells of 2 x 2 sub-cells), and for
+    offline algorithms the plan's tree kind and seed (so a monitor can rebuild the tree)."""
+
+    KIND: ClassVar[str] = "agent_state"
+    robot: int
+    incarnation: int
+    state: str
+    moves: int
+    n: int
+    covered: bytes
+    dead: tuple[int, ...]
+    took_over: tuple[int, ...]
+    drops: dict[str, int] = field(default_factory=dict)
+    tree: tuple[tuple[tuple[int, int], tuple[int, int]], ...] = ()
+    claims: tuple[tuple[int, int], ...] = ()
+    tree_kind: str = ""
+    seed: int = 0
+
+
+def pack_covered(covered: npt.NDArray[np.bool_]) -> bytes:
+    """Bits, then zlib: coverage is long runs, so even a 10^6-sub-cell map fits a message."""
+    return zlib.compress(np.packbits(covered.astype(bool)).tobytes())
+
+
+def unpack_covered(data: bytes, n: int) -> npt.NDArray[np.bool_]:
+    """The bool array of ``n`` packed by pack_covered; ValueError if ``data`` is not one."""
+    try:
+        raw = np.frombuffer(zlib.decompress(data), dtype=np.uint8)
+    except zlib.error as error:
+        raise ValueError(f"coverage bits do not decompress: {error}") from error
+    if raw.size * 8 < n:
+        raise ValueError(f"{raw.size} bytes cannot hold {n} bits")
+    return np.unpackbits(raw, count=n).astype(bool)
 
 
 # --- ORMSTC (docs/ormstc.md, "ORMSTC on the wire") ----------------------------------------

@@ -14,11 +14,14 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
+
 from bus import keys
 from bus.codec import decode
 from bus.drops import DropCounter
 from bus.errors import DecodeError
 from bus.messages import (
+    NO_ROBOT,
     AdminCommand,
     AdminReply,
     BumpEvent,
@@ -27,6 +30,7 @@ from bus.messages import (
     HwCommand,
     HwReply,
     HwStatus,
+    RobotArray,
     RobotTruth,
     WorldState,
     make_world_state,
@@ -34,11 +38,46 @@ from bus.messages import (
 from simhw.clock import SimClock
 from simhw.errors import BodyBusyError, BodyFailedError, BodyFrozenError, CommandRejected
 from simhw.kinematics import Kinematics
-from simhw.types import BodyStatus, Odometry, Side, SonarReading, StepResult
+from simhw.types import BodyStatus, CoverRecord, Odometry, Side, SonarReading, StepResult
 from simhw.world import World
 
 Publish = Callable[[str, object], None]
 NO_POSE = (-1, -1, 0)
+
+
+class FirstVisitors:
+    """Who entered each sub-cell first and who first crossed each border between 2 x 2
+    cells, folded from the world's cover log (so a late monitor colours cells and tree
+    edges as one that watched every CoverEvent)."""
+
+    def __init__(self, shape: tuple[int, int]) -> None:
+        h, w = shape[0] // 2, shape[1] // 2
+        self.first: RobotArray = np.full(shape, NO_ROBOT, np.uint8)
+        self.right: RobotArray = np.full((h, max(w - 1, 0)), NO_ROBOT, np.uint8)
+        self.down: RobotArray = np.full((max(h - 1, 0), w), NO_ROBOT, np.uint8)
+        self.folded = 0
+        self._last: dict[int, tuple[int, int]] = {}
+
+    def fold(self, log: list[CoverRecord]) -> None:
+        for rec in log[self.folded:]:
+            if rec.robot >= NO_ROBOT:
+                raise ValueError(f"robot id {rec.robot} does not fit the packed world state")
+            if rec.visits == 1:
+                self.first[rec.sub] = rec.robot
+            last = self._last.get(rec.robot)
+            self._last[rec.robot] = rec.sub
+            if last is not None:
+                self._cross(rec.robot, last, rec.sub)
+        self.folded = len(log)
+
+    def _cross(self, robot: int, a: tuple[int, int], b: tuple[int, int]) -> None:
+        (ra, ca), (rb, cb) = (a[0] // 2, a[1] // 2), (b[0] // 2, b[1] // 2)
+        if (ra, ca) == (rb, cb) or abs(ra - rb) + abs(ca - cb) != 1:
+            return
+        border = self.right if ra == rb else self.down
+        at = (min(ra, rb), min(ca, cb))
+        if border[at] == NO_ROBOT:
+            border[at] = robot
 
 
 @dataclass(frozen=True)
@@ -66,6 +105,7 @@ class HwService:
         self._changed = asyncio.Event()
         self._incarnation: dict[int, int] = {}
         self._covers_sent = 0
+        self.firsts = FirstVisitors(world.grid.free.shape)
         self._bumps_sent = 0
         self.counts: Counter[str] = Counter()
         self.shutdown = asyncio.Event()
@@ -241,8 +281,11 @@ class HwService:
                        frozen=b.status is BodyStatus.FROZEN,
                        failed=b.status is BodyStatus.FAILED, covered=covered[b.robot])
             for b in self.world.bodies())
+        self.firsts.fold(self.world.cover_log)
         return make_world_state(self.world.grid.name, self.world.grid.free, self.world.visits,
-                                robots, self.clock.now(), self.time_scale)
+                                robots, self.clock.now(), self.time_scale,
+                                first=self.firsts.first,
+                                crossed=(self.firsts.right, self.firsts.down))
 
     def publish_initial(self) -> None:
         """Poses and start-cell covers of every body, for subscribers already listening."""

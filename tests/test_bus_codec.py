@@ -18,8 +18,10 @@ from bus.codec import decode, decode_any, encode
 from bus.errors import DecodeError, EncodeError
 from bus.messages import (
     MESSAGE_TYPES,
+    NO_ROBOT,
     RECORD_TYPES,
     SCHEMA_VERSION,
+    AgentState,
     Heartbeat,
     HwReply,
     Progress,
@@ -27,6 +29,8 @@ from bus.messages import (
     RobotTruth,
     WorldState,
     make_world_state,
+    world_crossed,
+    world_first,
     world_free,
     world_visits,
 )
@@ -195,3 +199,52 @@ def test_world_state_packs_masks_exactly(h: int, w: int, data: st.DataObject) ->
     state = decode(encode(make_world_state("m", free, visits, (), 1.0, 2.0)), WorldState)
     assert np.array_equal(world_free(state), free)
     assert np.array_equal(world_visits(state), np.minimum(visits, 255))
+
+
+def test_world_state_packs_first_visitors_and_crossers_losslessly() -> None:
+    rng = np.random.default_rng(5)
+    free = rng.random((6, 8)) < 0.8
+    visits = rng.integers(0, 300, (6, 8))
+    first = rng.integers(0, 256, (6, 8)).astype(np.uint8)
+    right = rng.integers(0, 256, (3, 3)).astype(np.uint8)
+    down = rng.integers(0, 256, (2, 4)).astype(np.uint8)
+    state = decode(encode(make_world_state("m", free, visits, (), 1.0, 0.0, first=first,
+                                           crossed=(right, down))), WorldState)
+    assert np.array_equal(world_free(state), free)
+    assert np.array_equal(world_visits(state), np.minimum(visits, 255))
+    assert np.array_equal(world_first(state), first)
+    got_right, got_down = world_crossed(state)
+    assert np.array_equal(got_right, right) and np.array_equal(got_down, down)
+    empty = make_world_state("m", free, visits, (), 1.0, 0.0)
+    assert (world_first(empty) == NO_ROBOT).all()
+    assert all((a == NO_ROBOT).all() for a in world_crossed(empty))
+    with pytest.raises(ValueError, match="shape"):
+        make_world_state("m", free, visits, (), 1.0, 0.0, first=first[:, :4])
+    with pytest.raises(ValueError, match="decompress"):
+        world_first(dataclasses.replace(state, first=b"not zlib"))
+    with pytest.raises(ValueError, match="expected"):
+        world_first(dataclasses.replace(state, first=state.visits[:0] + state.crossed))
+
+
+def test_world_state_of_the_largest_benchmark_maps_fits_one_payload() -> None:
+    """107 x 107 sub-cells with incompressible (random) visits and first visitors: the
+    worst case for the 64 KiB limit; real missions compress far better."""
+    rng = np.random.default_rng(0)
+    shape = (107, 107)
+    robots = tuple(RobotTruth(r, (0, 0, 0), True, False, False, 100) for r in range(64))
+    state = make_world_state(
+        "big", rng.random(shape) < 0.7, rng.integers(0, 256, shape), robots, 1.0, 0.0,
+        first=rng.integers(0, 255, shape).astype(np.uint8),
+        crossed=(rng.integers(0, 255, (53, 52)).astype(np.uint8),
+                 rng.integers(0, 255, (52, 53)).astype(np.uint8)))
+    assert decode(encode(state), WorldState) == state
+
+
+def test_agent_state_of_one_robot_owning_a_whole_benchmark_map_fits_one_payload() -> None:
+    """An ORMSTC robot alone on 53 x 53 cells owns all of them: 2808 tree edges."""
+    tree = tuple(((r, c), (r, c + 1)) for r in range(53) for c in range(52)) \
+        + tuple(((r, 0), (r + 1, 0)) for r in range(52))
+    claims = tuple((r, c) for r in range(10) for c in range(10))
+    st_ = AgentState(0, 3, "covering", 10_000, 0, b"", (1, 2), (), {"x.y": 1}, tree, claims)
+    assert len(tree) == 53 * 53 - 1
+    assert decode(encode(st_), AgentState) == st_

@@ -48,6 +48,7 @@ class Mission:
     algo: str = "nb"
     records: list[Record] = field(default_factory=list)
     t: float = 0.0
+    log: list[tuple[int, SubCell]] = field(default_factory=list)  # every entry, in order
 
     def add(self, key: str, msg: object, via: str = "sub", dt: float = 0.01) -> None:
         self.t += dt
@@ -69,7 +70,34 @@ class Mission:
             walked = walk[: None if upto is None else upto.get(r, len(walk))]
             robots.append(RobotTruth(r, (*walked[-1], 1), r not in failed, False,
                                      r in failed, len(walked)))
-        return make_world_state("script", self.free, visits, tuple(robots), self.t, 0.0)
+        first, crossed = self.firsts(upto)
+        return make_world_state("script", self.free, visits, tuple(robots), self.t, 0.0,
+                                first=first, crossed=crossed)
+
+    def firsts(self, upto: dict[int, int] | None = None
+               ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """First visitor per sub-cell and first crosser per cell border (255: nobody), by
+        replaying the entries in the order they were made."""
+        h, w = self.free.shape
+        first = np.full((h, w), 255, np.uint8)
+        right = np.full((h // 2, w // 2 - 1), 255, np.uint8)
+        down = np.full((h // 2 - 1, w // 2), 255, np.uint8)
+        taken: Counter[int] = Counter()
+        last: dict[int, SubCell] = {}
+        for r, cell in self.log:
+            if upto is not None and taken[r] >= upto.get(r, len(self.walks[r])):
+                continue
+            taken[r] += 1
+            if first[cell] == 255:
+                first[cell] = r
+            if r in last:
+                (a, b), (c, d) = (last[r][0] // 2, last[r][1] // 2), (cell[0] // 2, cell[1] // 2)
+                if (a, b) != (c, d):
+                    border = right if a == c else down
+                    if border[min(a, c), min(b, d)] == 255:
+                        border[min(a, c), min(b, d)] = r
+            last[r] = cell
+        return first, (right, down)
 
 
 def run_mission(free: np.ndarray, walks: dict[int, list[SubCell]], algo: str = "nb",
@@ -85,6 +113,7 @@ def run_mission(free: np.ndarray, walks: dict[int, list[SubCell]], algo: str = "
         add(keys.alive(M, r, 1), TokenChange(r, 1, True), "token")
         add(keys.status(M, r), RobotStatus(r, 1, walk[0], algo, "d" * 8, "covering"))
         add(keys.sim_cover(M, r), CoverEvent(r, walk[0], 0.0, seen[walk[0]]))
+        mission.log.append((r, walk[0]))
     stopped: dict[int, int] = {}
     for step in range(1, max(len(w) for w in walks.values())):
         for r, walk in walks.items():
@@ -99,6 +128,7 @@ def run_mission(free: np.ndarray, walks: dict[int, list[SubCell]], algo: str = "
             seen[cell] += 1
             add(keys.sim_pose(M, r), GroundTruthPose(r, (*cell, 1), step * 2.0))
             add(keys.sim_cover(M, r), CoverEvent(r, cell, step * 2.0, seen[cell]))
+            mission.log.append((r, cell))
             add(keys.progress(M, r), Progress(r, 1, step, cell, step * 2.0))
             add(keys.heartbeat(M, r), Heartbeat(r, 1, step, (*cell, 1), "covering", step * 2.0))
     if kill is not None:

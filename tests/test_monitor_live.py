@@ -256,6 +256,11 @@ async def test_real_fleet_with_a_kill_report_against_ground_truth(router: str,
     assert len(death.taken_over_by) == 1 and death.taken_over_by[0] in (0, 2)
     assert {i.name: i.status for i in report.invariants}["redundancy"] == "skipped"
     assert report.ok and report.complete
+    # The agents' state replies name their tree: the monitor rebuilds it, and every walked
+    # border is one of its edges (STC crosses cell borders only along the tree).
+    planned = watcher.model.planned_tree()
+    assert planned is not None and set(watcher.model.edges) <= planned
+    assert len(planned) == len({(r // 2, c // 2) for r, c in np.argwhere(reachable)}) - 1
 
 
 async def test_recorded_runs_a_launcher_with_a_recorder_beside_it(router: str,
@@ -296,3 +301,87 @@ async def test_recorded_does_not_wait_for_a_router_that_never_came(tmp_path: Pat
 
     async with asyncio.timeout(10):
         assert await recorded(launcher(), settings, tmp_path / "x.jsonl") == 2
+
+
+# 4 x 6 cells with a one-cell pillar (ORMSTC obstacles fill whole cells, docs/ormstc.md).
+ORMSTC_ROOM = ["............"] * 2 + ["......##...."] * 2 + ["............"] * 4
+ORMSTC_STARTS = ((0, 0), (0, 11), (7, 5))
+
+
+def all_done(watcher: Watcher, k: int) -> bool:
+    views = watcher.model.robots.values()
+    return len(views) == k and all(v.done for v in views)
+
+
+def open_claims(watcher: Watcher) -> dict[tuple[int, int], set[int]]:
+    return {cell: set(who) for cell, who in watcher.model.claims.open.items() if who}
+
+
+@pytest.mark.slow
+async def test_ormstc_fleet_joined_midway_and_at_the_end_shows_the_same_picture(
+        router: str, tmp_path: Path) -> None:
+    """Real ORMSTC agents: monitors started before, midway and after the end agree on
+    coverage, first visitor of every sub-cell, tree edges (with their robots) and open
+    claims; the late ones learn trees and claims only from the agents' state replies."""
+    world = tmp_path / "room.txt"
+    world.write_text("\n".join(ORMSTC_ROOM) + "\n")
+    mission = f"mon{next(_missions)}"
+    settings = ConnectionSettings(connect=(router,), mission=mission)
+    k = len(ORMSTC_STARTS)
+    first, mid, stop, stop_mid = quiet_watcher(), quiet_watcher(), asyncio.Event(), \
+        asyncio.Event()
+    procs: list[subprocess.Popen[str]] = []
+    try:
+        async with asyncio.TaskGroup() as group:
+            watching = group.create_task(watch_live(settings, first, stop=stop,
+                                                    world_period=0.5))
+            async with asyncio.timeout(20):
+                while not first.connected:
+                    await asyncio.sleep(0.02)
+            await asyncio.sleep(0.5)
+            robots = ";".join(f"{r},{c}" for r, c in ORMSTC_STARTS)
+            procs.append(subprocess.Popen(
+                [sys.executable, "-m", "deploy.cli", "simhw", "--world", str(world),
+                 "--robots", robots, "--time-scale", "10", "--connect", router,
+                 "--mission", mission], stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True))
+            procs += [subprocess.Popen(
+                [sys.executable, "-m", "deploy.cli", "agent", "--id", str(r), "--algo",
+                 "ormstc", "--robots", str(k), "--connect", router, "--mission", mission,
+                 "--start-timeout", "30", "--linger", "60"],
+                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL, text=True) for r in range(k)]
+            async with asyncio.timeout(120):
+                while sum(v.moves for v in first.model.robots.values()) < 6:
+                    await asyncio.sleep(0.05)
+                midway = group.create_task(watch_live(settings, mid, stop=stop_mid,
+                                                      world_period=0.5))
+                while not all_done(first, k):
+                    await asyncio.sleep(0.1)
+            await asyncio.sleep(1.0)  # the last state and world answers
+            stop.set()
+            stop_mid.set()
+            await watching
+            await midway
+            late = quiet_watcher()
+            await watch_live(settings, late, duration=2.0)
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.terminate()
+            proc.wait(10)
+
+    reachable = reachable_sub_cells(resolve_world(str(world)), ORMSTC_STARTS)
+    picture = first.model.picture()
+    assert picture.covered >= {(int(r), int(c)) for r, c in np.argwhere(reachable)}
+    assert {c for c, _ in picture.owners} == picture.covered
+    assert {r for _, r in picture.owners} == set(range(k))
+    assert first.model.edges and first.model.claims.owner
+    # Every cell but the starts' is entered over one of its owner's tree edges.
+    assert len(first.model.claims.owner) + k == len({(r // 2, c // 2) for r, c in
+                                                    picture.covered})
+    for watcher in (mid, late):
+        assert watcher.model.picture() == picture
+        assert watcher.model.edges == first.model.edges
+        assert watcher.model.claims.owner == first.model.claims.owner
+        assert open_claims(watcher) == open_claims(first)

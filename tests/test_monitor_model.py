@@ -218,3 +218,69 @@ def test_the_monitor_needs_nothing_but_the_wire() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "[]"
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 2), st.booleans(), st.integers(0, 3),
+                          st.integers(0, 3)), max_size=40), st.floats(0.0, 1.0))
+def test_ormstc_late_and_midway_joiners_learn_trees_and_claims_from_state_replies(
+        ops: list[tuple[int, bool, int, int]], cut_at: float) -> None:
+    """Any stream of claims and tree edges (at most one owner per cell, as ORMSTC keeps):
+    a monitor fed the agents' state replies (built by the agents' own TreeBook) at some
+    point, then the rest of the stream, ends with the same edges, owners and open claims as
+    one that heard every message. Oracle: the full watch."""
+    from agent.ormstc_wire import TreeBook
+    from bus.messages import AgentState, OrmstcClaim, OrmstcTreeEdge
+
+    owned: dict[tuple[int, int], int] = {}
+    stream: list[Record] = []
+    for seq, (robot, edge, r, c) in enumerate(ops, start=1):
+        if edge and (r, c) not in owned:
+            owned[(r, c)] = robot
+            msg: OrmstcClaim | OrmstcTreeEdge = OrmstcTreeEdge(robot, 1, seq, (r, c + 1),
+                                                               (r, c))
+            key = keys.ormstc_tree(M, robot)
+        else:
+            msg, key = OrmstcClaim(robot, 1, seq, (r, c), 0), keys.ormstc_claim(M, robot)
+        stream.append(Record(seq * 0.1, key, msg))
+    cut = round(cut_at * len(stream))
+    books = {r: TreeBook() for r in range(3)}
+    for record in stream[:cut]:
+        for r, book in books.items():
+            (book.sent if record.msg.robot == r else book.heard)(record.msg)
+    replies = [Record(cut * 0.1, keys.state(M, r), AgentState(
+        r, 1, "covering", 0, 0, b"", (), (), {}, tuple(b.tree), tuple(b.claims)), "query")
+        for r, b in books.items()]
+    full, late = feed(stream), feed(replies + stream[cut:])
+
+    def open_claims(model: FleetModel) -> dict[tuple[int, int], set[int]]:
+        return {cell: set(who) for cell, who in model.claims.open.items() if who}
+
+    assert late.edges == full.edges
+    assert late.claims.owner == full.claims.owner == owned
+    assert open_claims(late) == open_claims(full)
+    assert late.picture().edges == full.picture().edges
+
+
+def test_planned_tree_is_the_agents_tree_once_map_starts_kind_and_seed_are_known() -> None:
+    """Oracle: the plan the agents themselves compute (agent.plan.compute_plan)."""
+    from agent.plan import compute_plan
+    from bus.messages import AgentState
+    from planner.types import OccupancyGrid
+
+    mission = run_mission(open_room(8, 8), {0: [(0, 0)], 1: [(7, 7)], 2: [(0, 7)]})
+    starts = [(0, 0), (7, 7), (0, 7)]
+    model = feed([r for r in mission.records if r.via == "query"
+                  or isinstance(r.msg, RobotStatus)])
+    assert model.planned_tree() is None  # no tree kind heard yet
+    for robot in range(3):
+        model.apply(Record(1.0, keys.state(M, robot), AgentState(
+            robot, 1, "covering", 0, 0, b"", (), (), {}, tree_kind="random", seed=7),
+            "query"))
+    plan = compute_plan(OccupancyGrid(open_room(8, 8)), starts, "nb", "random", 7)
+    assert model.planned_tree() == frozenset(plan.tree.edges())
+    assert len(plan.tree.edges()) == 15  # 16 cells
+    # A robot that disagrees about the seed: no tree rather than a wrong one.
+    model.apply(Record(2.0, keys.state(M, 1), AgentState(
+        1, 1, "covering", 0, 0, b"", (), (), {}, tree_kind="random", seed=8), "query"))
+    assert model.planned_tree() is None

@@ -17,6 +17,7 @@ from bus.errors import DecodeError
 from bus.messages import (
     SCHEMA_VERSION,
     AdminReply,
+    AgentState,
     HwReply,
     MissionStatus,
     RobotTruth,
@@ -54,7 +55,10 @@ def samples() -> list[Record]:
                                                 {"front": None, "left": 2}, False, 1.0)),
         Record(0.7, keys.hw_admin(M), AdminReply(True, "", {"a": 1, "b": 2.5, "c": "x"})),
         Record(0.8, keys.mission_status(M), MissionStatus("failed", "why", {"n": -1})),
-        Record(0.9, keys.state(M, 2), Opaque("agent_state", {"robot": 2, "covered": b"\x01",
+        Record(0.9, keys.state(M, 2), AgentState(2, 1, "done", 9, 8, b"\x01", (1,), (1,),
+                                                 {"hb.decode": 1}, (((0, 0), (0, 1)),),
+                                                 ((1, 1),)), "query"),
+        Record(1.0, keys.state(M, 3), Opaque("future_kind", {"robot": 2, "covered": b"\x01",
                                                              "dead": [1]}), "query"),
     ]
 

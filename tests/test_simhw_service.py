@@ -9,14 +9,18 @@ import numpy as np
 import pytest
 
 from bus import keys
-from bus.codec import encode
+from bus.codec import decode, encode
 from bus.messages import (
+    NO_ROBOT,
     AdminCommand,
     BumpEvent,
     CoverEvent,
     GroundTruthPose,
     HwCommand,
     HwReply,
+    WorldState,
+    world_crossed,
+    world_first,
     world_free,
     world_visits,
 )
@@ -226,3 +230,40 @@ async def test_fail_mid_motion_releases_the_target() -> None:
     reply = await asyncio.wait_for(moving, 2.0)
     assert reply.status == "failed" and reply.pose == (0, 0, 1)
     assert world.held() == {(0, 0): 0}
+
+
+async def test_world_state_first_visitors_and_crossers_match_the_cover_events() -> None:
+    """Oracle: the published CoverEvents, replayed naively in the order they were sent."""
+    rows = ["......", "......", "..#...", "......"]
+    svc, sent = make(rows, [Pose(0, 0, Heading.E), Pose(3, 5, Heading.W)])
+    svc.publish_initial()
+    script = {0: ["forward", "forward", "turn_right", "forward", "forward", "forward",
+                  "turn_left", "forward"],
+              1: ["forward", "forward", "forward", "turn_right", "forward", "forward",
+                  "forward", "turn_right", "forward"]}
+    for i in range(max(map(len, script.values()))):
+        await asyncio.gather(*(svc.command(r, cmd(r, acts[i], cmd_id=i + 1))
+                               for r, acts in script.items() if i < len(acts)))
+    first: dict[tuple[int, int], int] = {}
+    crossed: dict[tuple[tuple[int, int], tuple[int, int]], int] = {}
+    last: dict[int, tuple[int, int]] = {}
+    for _, ev in sent:
+        if not isinstance(ev, CoverEvent):
+            continue
+        first.setdefault(ev.cell, ev.robot)
+        if ev.robot in last:
+            a = (last[ev.robot][0] // 2, last[ev.robot][1] // 2)
+            b = (ev.cell[0] // 2, ev.cell[1] // 2)
+            if a != b:
+                crossed.setdefault((min(a, b), max(a, b)), ev.robot)
+        last[ev.robot] = ev.cell
+    state = decode(encode(svc.world_state()), WorldState)
+    got_first = world_first(state)
+    assert {(int(r), int(c)): int(got_first[r, c])
+            for r, c in np.argwhere(got_first != NO_ROBOT)} == first
+    right, down = world_crossed(state)
+    got = {((int(r), int(c)), (int(r), int(c) + 1)): int(right[r, c])
+           for r, c in np.argwhere(right != NO_ROBOT)}
+    got.update({((int(r), int(c)), (int(r) + 1, int(c))): int(down[r, c])
+                for r, c in np.argwhere(down != NO_ROBOT)})
+    assert got == crossed and set(crossed.values()) == {0, 1}

@@ -3,10 +3,11 @@
 Bus handlers only append a Record to a deque (its depth is the monitor's queue, shown on
 screen and measured by benchmarks/bench_monitor.py); the consumer drains it on the loop.
 A late joiner learns the past by querying ``state/*`` (agents' statuses, deaths, verdicts,
-agent states) and ``sim/world`` (map, visit counts, bodies) at start and then every
-``world_period`` seconds. State replies are decoded here from the raw payload, so that an
-agent's ``agent_state`` (a type of agent/, which the monitor must not import) is kept as an
-Opaque instead of being counted as a drop.
+agent states with ORMSTC trees and claims) and ``sim/world`` (map, visit counts, first
+visitors and crossers, bodies) at start and then every ``world_period`` seconds. State
+replies are decoded here from the raw payload, so that a kind this process does not know
+(a newer peer's) is kept as an Opaque instead of being counted as a drop. Every kind it
+needs is in bus.messages: the monitor imports no agent or simhw code.
 """
 
 from __future__ import annotations

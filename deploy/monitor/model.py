@@ -14,8 +14,13 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+import numpy.typing as npt
+
 from bus import keys
 from bus.messages import (
+    NO_ROBOT,
+    AgentState,
     BumpEvent,
     CoverEvent,
     DeathNotice,
@@ -26,11 +31,14 @@ from bus.messages import (
     RobotEvent,
     RobotStatus,
     WorldState,
+    world_crossed,
+    world_first,
     world_free,
     world_visits,
 )
 from deploy.monitor.coverage import CoverageMap
 from deploy.monitor.ormstc import ClaimBook, fields_of
+from deploy.monitor.planned import planned_edges
 from deploy.monitor.types import (
     Death,
     EventKind,
@@ -40,6 +48,7 @@ from deploy.monitor.types import (
     Record,
     TokenChange,
 )
+from planner.errors import PlannerError
 from planner.types import BoolArray, Cell, SubCell
 
 Pose = tuple[int, int, int]
@@ -70,6 +79,8 @@ class RobotView:
     ended: str = ""  # "stopped" or "fenced": this life ended on an error
     took_over: list[int] = field(default_factory=list)
     messages: int = 0
+    tree_kind: str = ""  # offline plans: the tree kind and seed from the agent's state
+    seed: int = 0
 
     @property
     def moves(self) -> int:
@@ -87,7 +98,11 @@ class FleetModel:
     def __init__(self, max_events: int = 1000) -> None:
         self.robots: dict[int, RobotView] = {}
         self.cover = CoverageMap()
+        # Tree edges drawn: ORMSTC's own (built) win over those seen crossed by a walk.
         self.edges: dict[tuple[Cell, Cell], int] = {}
+        self._built: set[tuple[Cell, Cell]] = set()
+        self._planned: tuple[Any, frozenset[tuple[Cell, Cell]] | None] = (None, None)
+        self._firsts_seen: tuple[npt.NDArray[np.uint8], ...] | None = None
         self.claims = ClaimBook()
         self.mission: MissionStatus | None = None
         self.sim_time = 0.0
@@ -324,6 +339,16 @@ class FleetModel:
         if ca != cb and abs(ca[0] - cb[0]) + abs(ca[1] - cb[1]) == 1:
             self.edges.setdefault((min(ca, cb), max(ca, cb)), robot)
 
+    def _crossed(self, edge: tuple[Cell, Cell], robot: int) -> None:
+        """simhw's first crosser of a border: the truth, so it replaces the guess made from
+        the order CoverEvents of different robots arrived in (not an edge ORMSTC built)."""
+        if edge not in self._built:
+            self.edges[edge] = robot
+
+    def _built_edge(self, edge: tuple[Cell, Cell], robot: int) -> None:
+        self._built.add(edge)
+        self.edges[edge] = robot
+
     def _set_visits(self, t: float, cell: SubCell, count: int) -> None:
         if self.cover.set_visits(t, self.sim_time, cell, count, self._positions()):
             self._emit(t, "world", None, "every reachable sub-cell is covered")
@@ -336,6 +361,7 @@ class FleetModel:
         self._sim(state.sim_time)
         for cell, count in self.cover.newer_counts(world_visits(state)):
             self._set_visits(record.t, cell, count)
+        self._world_firsts(state)
         for truth in state.robots:
             view = self._valid(record, truth.robot, "world")
             if view is None:
@@ -349,28 +375,51 @@ class FleetModel:
         if self.cover.check_complete(record.t, self.sim_time, self._positions()):
             self._emit(record.t, "world", None, "every reachable sub-cell is covered")
 
+    def _world_firsts(self, state: WorldState) -> None:
+        """First visitors and first crossers: what a late joiner never saw happen. Only
+        entries that changed since the last answer are merged (they never change once set),
+        so a periodic answer costs time in proportion to what happened meanwhile."""
+        try:
+            arrays = (world_first(state), *world_crossed(state))
+        except ValueError:
+            self.invalid["world.packing"] += 1
+            return
+        last = self._firsts_seen
+        fresh = [a != NO_ROBOT if b is None or b.shape != a.shape else (a != b) & (a != NO_ROBOT)
+                 for a, b in zip(arrays, last or (None, None, None), strict=True)]
+        self._firsts_seen = arrays
+        first, right, down = arrays
+        for r, c in np.argwhere(fresh[0]):
+            self.cover.owner.setdefault((int(r), int(c)), int(first[r, c]))
+        for r, c in np.argwhere(fresh[1]):
+            self._crossed(((int(r), int(c)), (int(r), int(c) + 1)), int(right[r, c]))
+        for r, c in np.argwhere(fresh[2]):
+            self._crossed(((int(r), int(c)), (int(r) + 1, int(c))), int(down[r, c]))
+
+    def _agent_state(self, record: Record, st: AgentState) -> None:
+        view = self._valid(record, st.robot, "agent_state")
+        if view is None or st.incarnation < view.incarnation:
+            return
+        if not view.dead and not view.left:
+            view.state = st.state
+            view.done = view.done or st.state == "done"
+        view.reported_moves = max(view.reported_moves, st.moves)
+        view.took_over.extend(d for d in st.took_over if d not in view.took_over)
+        if st.tree_kind:
+            view.tree_kind, view.seed = st.tree_kind, st.seed
+        for event in self.claims.restore(record.t, st.robot, st.tree, st.claims):
+            if event.edge is not None:
+                self._built_edge(event.edge, st.robot)
+
     def _other(self, record: Record, msg: Any) -> None:
-        """Agent state replies and ORMSTC messages, typed or not."""
+        """ORMSTC messages, typed or not."""
         kind = record.kind
         fields = msg.fields if isinstance(msg, Opaque) else fields_of(msg)
-        if kind == "agent_state":
-            view = self._valid(record, fields.get("robot"), kind)
-            if view is not None:
-                moves, state = fields.get("moves"), fields.get("state")
-                if isinstance(state, str) and not view.dead and not view.left:
-                    view.state = state
-                    view.done = view.done or state == "done"
-                view.reported_moves = max(view.reported_moves,
-                                          moves if isinstance(moves, int) else 0)
-                for dead in fields.get("took_over", ()):
-                    if isinstance(dead, int) and dead not in view.took_over:
-                        view.took_over.append(dead)
-            return
         parsed = self.parse(record.key)
         if parsed is not None and parsed.kind.startswith("ormstc/"):
             for event in self.claims.apply(record.t, parsed.kind, fields):
                 if event.edge is not None and event.robot is not None:
-                    self.edges[event.edge] = event.robot
+                    self._built_edge(event.edge, event.robot)
                 if event.kind in ("completed", "withdrawn") and event.robot is not None:
                     self.robot(event.robot).done = event.kind == "completed"
                 if event.text:
@@ -379,6 +428,29 @@ class FleetModel:
         self.invalid[f"{kind}.unhandled"] += 1
 
     # --- derived -------------------------------------------------------------------------
+
+    def planned_tree(self) -> frozenset[tuple[Cell, Cell]] | None:
+        """The offline plan's tree edges, once the map, every robot's start (ids 0..k-1)
+        and one agreed tree kind and seed are known; None before, or if they make no plan."""
+        views = [self.robots.get(r) for r in range(len(self.robots))]
+        if self.cover.free is None or any(v is None or v.start is None or not v.tree_kind
+                                          for v in views):
+            return None
+        inputs = (self.cover.free.shape, tuple((v.start, v.tree_kind, v.seed)
+                                               for v in views if v is not None))
+        if len({(kind, seed) for _, kind, seed in inputs[1]}) != 1:
+            return None
+        if self._planned[0] != inputs:
+            starts = [start for start, _, _ in inputs[1] if start is not None]
+            _, kind, seed = inputs[1][0]
+            try:
+                edges: frozenset[tuple[Cell, Cell]] | None = planned_edges(
+                    self.cover.free, starts, kind, seed)
+            except PlannerError:
+                self.invalid["plan.unbuildable"] += 1
+                edges = None
+            self._planned = (inputs, edges)
+        return self._planned[1]
 
     def _positions(self) -> list[SubCell]:
         where = [v.start for v in self.robots.values() if v.start is not None]
@@ -416,7 +488,8 @@ class FleetModel:
             covered=frozenset(visits), visits=frozenset(visits.items()),
             robots=tuple((v.robot, v.moves, v.dead, v.done, v.left)
                          for v in sorted(self.robots.values(), key=lambda v: v.robot)),
-            mission=self.mission.state if self.mission else "")
+            mission=self.mission.state if self.mission else "",
+            owners=frozenset(self.cover.owner.items()), edges=frozenset(self.edges.items()))
 
 
 def _fenced(view: RobotView, incarnation: int) -> bool:
@@ -429,5 +502,5 @@ _HANDLERS: dict[type[Any], Any] = {
     DeathNotice: FleetModel._death, MissionStatus: FleetModel._mission,
     GroundTruthPose: FleetModel._pose, BumpEvent: FleetModel._bump,
     TokenChange: FleetModel._token, CoverEvent: FleetModel._cover,
-    WorldState: FleetModel._world,
+    WorldState: FleetModel._world, AgentState: FleetModel._agent_state,
 }

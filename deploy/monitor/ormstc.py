@@ -9,7 +9,7 @@ robots claiming one cell is a conflict; the tree edge that follows names the win
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -71,6 +71,12 @@ class ClaimBook:
 
     def _claim(self, t: float, robot: int, cell: Cell) -> list[ClaimEvent]:
         self.claims += 1
+        owner = self.owner.get(cell)
+        if owner is not None:
+            # Settled before it was made (the claimant had not heard the edge yet): an open
+            # claim here would differ from what a late joiner learns from state replies.
+            return [ClaimEvent("claimed", robot, f"robot {robot} claims cell {cell} "
+                                                 f"(already robot {owner}'s)")]
         claimants = self.open.setdefault(cell, {})
         rivals = sorted(set(claimants) - {robot})
         claimants.setdefault(robot, t)
@@ -89,6 +95,22 @@ class ClaimBook:
             events += [ClaimEvent("conflict_lost", loser,
                                   f"robot {loser} lost cell {child} to robot {robot}")
                        for loser in sorted(set(claimants) - {robot})]
+        return events
+
+    def restore(self, t: float, robot: int, tree: Iterable[tuple[Cell, Cell]],
+                claims: Iterable[Cell]) -> list[ClaimEvent]:
+        """A robot's state reply: its tree edges and unsettled claims, for a late joiner.
+        Idempotent; a claim on a cell someone owns is already settled (conflicts that were
+        settled before this monitor joined stay unknown)."""
+        events = []
+        for parent, child in tree:
+            self.owner[child] = robot
+            self.open.pop(child, None)
+            events.append(ClaimEvent("tree_edge", robot, edge=(min(parent, child),
+                                                               max(parent, child))))
+        for cell in claims:
+            if cell not in self.owner:
+                self.open.setdefault(cell, {}).setdefault(robot, t)
         return events
 
     def unsettled(self) -> list[Conflict]:

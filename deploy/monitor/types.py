@@ -21,8 +21,8 @@ EventKind = Literal[
 
 @dataclass(frozen=True)
 class Opaque:
-    """A message whose kind this process has no bus type for (e.g. an agent's
-    ``agent_state`` query reply): its kind and its fields as decoded by msgpack."""
+    """A message whose kind this process has no bus type for (a newer peer's kind, or a
+    test's stand-in): its kind and its fields as decoded by msgpack."""
 
     kind: str
     fields: Mapping[str, Any] = field(default_factory=dict)
@@ -115,3 +115,5 @@ class Picture:
     visits: frozenset[tuple[SubCell, int]]
     robots: tuple[tuple[int, int, bool, bool, bool], ...]  # id, moves, dead, done, left
     mission: str
+    owners: frozenset[tuple[SubCell, int]] = frozenset()  # sub-cell, robot that entered first
+    edges: frozenset[tuple[tuple[SubCell, SubCell], int]] = frozenset()  # cell edge, robot

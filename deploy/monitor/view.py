@@ -112,23 +112,31 @@ class _Runs:
 def _with_edges(model: FleetModel, ch: int, cw: int,
                 robots: dict[tuple[int, int], RobotView]) -> Text:
     runs = _Runs()
+    planned = model.planned_tree() or frozenset()
     for i in range(ch):
         for j in range(cw):
             runs.add(*_cell_glyph(model, (i, j), robots))
             if j + 1 < cw:
-                owner = model.edges.get(((i, j), (i, j + 1)))
-                runs.add("─" if owner is not None else " ",
-                         colour(owner) if owner is not None else "")
+                runs.add(*_edge_glyph(model, ((i, j), (i, j + 1)), "─", planned))
         runs.add("\n", "")
         if i + 1 < ch:
             for j in range(cw):
-                owner = model.edges.get(((i, j), (i + 1, j)))
-                runs.add("│" if owner is not None else " ",
-                         colour(owner) if owner is not None else "")
+                runs.add(*_edge_glyph(model, ((i, j), (i + 1, j)), "│", planned))
                 if j + 1 < cw:
                     runs.add(" ", "")
             runs.add("\n", "")
     return runs.text()
+
+
+def _edge_glyph(model: FleetModel, edge: tuple[tuple[int, int], tuple[int, int]],
+                glyph: str, planned: frozenset[tuple[tuple[int, int], tuple[int, int]]]
+                ) -> tuple[str, str]:
+    """A walked (or ORMSTC-built) edge in its robot's colour; a planned one not walked yet
+    dim (offline plans, once the monitor could rebuild the tree)."""
+    owner = model.edges.get(edge)
+    if owner is not None:
+        return glyph, colour(owner)
+    return (glyph, "dim") if edge in planned else (" ", "")
 
 
 def _shape(model: FleetModel) -> tuple[int, int] | None:
