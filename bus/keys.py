@@ -26,6 +26,9 @@ Layout (``<r>`` robot id, ``<i>`` incarnation)::
     mstc/<m>/sim/bump/<r>           BumpEvent (sim only)
     mstc/<m>/sim/world              queryable (simhw): WorldState
     mstc/<m>/mission                MissionStatus (also answered on mstc/<m>/state/mission)
+    mstc/<m>/tree/robot/<r>/outbox  TreeReport a tree-coverage robot transmits (radio's input)
+    mstc/<m>/tree/robot/<r>/inbox   TreeReport the radio lets through to robot <r>
+    mstc/<m>/tree/radio             queryable (radio): RadioStats
 """
 
 from __future__ import annotations
@@ -219,6 +222,28 @@ def mission_status(mission: str) -> str:
     return f"{_base(mission)}/mission"
 
 
+def tree_outbox(mission: str, robot: int) -> str:
+    """What tree-coverage robot ``robot`` transmits; only the radio subscribes to it."""
+    return f"{_base(mission)}/tree/robot/{_robot(robot)}/outbox"
+
+
+def all_tree_outboxes(mission: str) -> str:
+    return f"{_base(mission)}/tree/robot/*/outbox"
+
+
+def tree_inbox(mission: str, robot: int) -> str:
+    """What the radio delivers to ``robot`` (transmissions from robots in range)."""
+    return f"{_base(mission)}/tree/robot/{_robot(robot)}/inbox"
+
+
+def all_tree_inboxes(mission: str) -> str:
+    return f"{_base(mission)}/tree/robot/*/inbox"
+
+
+def tree_radio(mission: str) -> str:
+    return f"{_base(mission)}/tree/radio"
+
+
 @dataclass(frozen=True)
 class ParsedKey:
     """What a received key says: ``kind`` is e.g. "hb", "alive", "ormstc/tree", "hw/cmd"."""
@@ -258,7 +283,10 @@ def parse(key: str) -> ParsedKey | None:
     if len(rest) == 3 and head == "hw" and rest[2] == "cmd":
         robot = _int(rest[1])
         return None if robot is None else ParsedKey(mission, "hw/cmd", robot)
-    if rest in (["sim", "world"], ["mission"]):
+    if len(rest) == 4 and rest[:2] == ["tree", "robot"] and rest[3] in ("outbox", "inbox"):
+        robot = _int(rest[2])
+        return None if robot is None else ParsedKey(mission, f"tree/{rest[3]}", robot)
+    if rest in (["sim", "world"], ["mission"], ["tree", "radio"]):
         return ParsedKey(mission, "/".join(rest))
     return None
 

@@ -15,6 +15,7 @@ from typing import Any
 import zenoh
 
 from bus import messages as m
+from bus import tree_messages as tm
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,9 @@ _BY_TYPE: dict[type[Any], Qos] = {
     m.WorldState: BULK,
     # one priority for every ORMSTC kind keeps each sender's messages in order across keys
     **{t: CRITICAL for t in m.ORMSTC_MESSAGES},
+    # a lost tree report stalls the whole team's step: never drop it under congestion
+    tm.TreeReport: CRITICAL,
+    tm.RadioStats: CONTROL,
 }
 
 

@@ -7,6 +7,7 @@ import csv
 import time
 from pathlib import Path
 
+from planner.treecover.loop import run_loop_iterations
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import general_tree, perfect_tree
 
@@ -14,6 +15,7 @@ FULL_ROBOTS = list(range(5, 61, 5))
 QUICK_ROBOTS = [5, 15, 30, 60]
 PERFECT = [(2, 15), (3, 8), (4, 8)]
 QUICK_PERFECT = [(2, 11), (3, 6), (4, 5)]
+EXAMPLE = [(16, "ncocta"), (20, "ncocta"), (16, "cocta"), (20, "cocta")]  # sec. 4.2 / 4.3
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,21 +34,30 @@ def run(args: argparse.Namespace) -> int:
     heights = _height_sweep(range(5, 11 if args.quick else 16))
     seeds = args.seeds if args.seeds is not None else (1 if args.quick else 3)
     general = _general_sweep([10] if args.quick else [10, 12], seeds)
+    example = [_row(3, 7, k, algo) for k, algo in EXAMPLE]
+    _write(out / "cocta_example.csv", example)
     _write(out / "cocta_perfect.csv", perfect)
     _write(out / "cocta_heights.csv", heights)
     _write(out / "cocta_general.csv", general)
     _plot(out, perfect, heights, general)
+    for row in example:
+        print(f"3-ary H=7, {row['robots']} robots, {row['algo']}: SF {row['speedup']:.2f} "
+              f"(edge steps), {row['loop_speedup']:.2f} (loop iterations)")
     print(f"wrote {out}/cocta_*.csv and .png in {time.perf_counter() - started:.1f} s")
     return 0
 
 
 def _row(n: int, h: int, robots: int, algo: str, **extra: object) -> dict[str, object]:
-    result = run_coverage(perfect_tree(n, h), robots, algo)
-    if not result.connected:
+    """One run per clock: edge steps (``time``) and iterations of the paper's loop."""
+    tree = perfect_tree(n, h)
+    result = run_coverage(tree, robots, algo)
+    loop = run_loop_iterations(tree, robots, algo)
+    if not (result.connected and loop.connected):
         raise RuntimeError(f"connectivity broken: N={n} H={h} k={robots} {algo}")
     return {"N": n, "H": h, "robots": robots, "algo": algo, "time": result.time,
             "speedup": round(result.speedup, 4),
             "splits": " ".join(map(str, result.splits.heights)),
+            "loop_time": loop.time, "loop_speedup": round(loop.speedup, 4),
             **extra}
 
 
@@ -97,7 +108,10 @@ def _plot(out: Path, perfect: list[dict[str, object]], heights: list[dict[str, o
         for algo in ("ncocta", "cocta"):
             rows = [r for r in perfect if r["N"] == n and r["H"] == h and r["algo"] == algo]
             ks = [r["robots"] for r in rows]
-            axes[0, col].plot(ks, [r["speedup"] for r in rows], marker=".", label=algo)
+            line, = axes[0, col].plot(ks, [r["speedup"] for r in rows], marker=".",
+                                      label=algo)
+            axes[0, col].plot(ks, [r["loop_speedup"] for r in rows], linestyle="--",
+                              color=line.get_color(), label=f"{algo} (loop iterations)")
             axes[1, col].plot(ks, [r["time"] for r in rows], marker=".", label=algo)
         axes[0, col].set_title(f"{n}-ary, H={h}")
         axes[1, col].set_xlabel("robots")

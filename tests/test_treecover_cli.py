@@ -44,6 +44,6 @@ def test_user_mistakes_are_one_line(args: list[str], capsys: pytest.CaptureFixtu
 def test_repro_quick_writes_csv_and_png(tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
     assert main(["repro-cocta", "--quick", "--out", str(tmp_path)]) == 0
-    for name in ("cocta_perfect.csv", "cocta_heights.csv", "cocta_general.csv",
-                 "cocta_fig4.png", "cocta_general.png"):
+    for name in ("cocta_example.csv", "cocta_perfect.csv", "cocta_heights.csv",
+                 "cocta_general.csv", "cocta_fig4.png", "cocta_general.png"):
         assert (tmp_path / name).stat().st_size > 0

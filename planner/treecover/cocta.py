@@ -1,10 +1,10 @@
 """COCTA's rule for one occupied node that is not finished (paper 001, Algorithm 2): NCOCTA
 plus dripping.
 
-A child gets no more robots than it can use (:meth:`CoverageState.useful`); the rest go to
-other children, and robots a subtree cannot use drip to the parent, which hands them to
-another subtree. An explored subtree does not wait for its team: robots climb at once,
-leaving one behind per node to keep the team connected.
+A child gets no more robots than it can use (:meth:`CoverageState.useful`: its nodes that are
+not finished, section 4.3); the rest go to other children, and robots a subtree cannot use
+drip to the parent, which hands them to another subtree. An explored subtree does not wait for
+its team: robots climb at once, leaving one behind per node to keep the team connected.
 """
 
 from __future__ import annotations

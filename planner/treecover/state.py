@@ -1,8 +1,8 @@
 """The explored state of a connected tree coverage run, updated move by move.
 
-Kept incrementally (robots per node, robots per subtree, unexplored nodes per subtree) so a
-step costs time proportional to the occupied nodes, not to the tree: a 4-ary tree of height 8
-has 87,381 nodes.
+Kept incrementally (robots per node, robots per subtree, unexplored and unfinished nodes per
+subtree) so a step costs time proportional to the occupied nodes, not to the tree: a 4-ary
+tree of height 8 has 87,381 nodes.
 """
 
 from __future__ import annotations
@@ -26,11 +26,13 @@ class CoverageState:
         index = tree.child_index.tolist()
         self.children: list[list[int]] = [index[starts[v]:starts[v + 1]] for v in range(tree.n)]
         self.unexplored, reach = _subtree_sizes_and_heights(self.parent, self.children)
+        self.unfinished_nodes = list(self.unexplored)  # w in T_v with unexplored[w] > 0
         self.need = need if need is not None else [r + 1 for r in reach]
         self.sub = [0] * tree.n
         self.sub[0] = robots
         self.at: dict[int, int] = {0: robots}
         self.visit_time = [-1] * tree.n
+        self._inhabited: dict[int, int] | None = None
         self.time = 0
         self.remaining = tree.n
         self._visit(0)
@@ -43,16 +45,25 @@ class CoverageState:
         return self.finished(0) and self.at.get(0, 0) == self.robots
 
     def useful(self, v: int) -> int:
-        """Robots T_v can use: one per unexplored node, and never fewer than ``need[v]``, the
-        team that can finish T_v without stalling (by default a trail to its deepest leaf: a
-        robot can only go d edges below v while d others hold the path behind it)."""
+        """Robots T_v can use while it has unexplored nodes: one per node of T_v that is not
+        finished (paper 001, section 4.3), which counts the trail to every unexplored node as
+        well as the nodes themselves; never fewer than ``need[v]``, the team that finishes T_v
+        without stalling under the splits (a floor that almost never binds)."""
         if self.unexplored[v] == 0:
             return 0
-        return max(self.unexplored[v], self.need[v])
+        return max(self.not_finished(v), self.need[v])
+
+    def not_finished(self, v: int) -> int:
+        """Nodes w of T_v that are not finished: unexplored nodes below or at w, or robots
+        strictly below w."""
+        if self._inhabited is None:
+            self._inhabited = self._explored_with_robots_below()
+        return self.unfinished_nodes[v] + self._inhabited.get(v, 0)
 
     def apply(self, moves: Iterable[Move]) -> None:
         """Perform one synchronous step (all moves at once)."""
         self.time += 1
+        self._inhabited = None
         parent, at, sub = self.parent, self.at, self.sub
         for move in moves:
             left = at[move.src] - move.count
@@ -83,10 +94,32 @@ class CoverageState:
     def _visit(self, v: int) -> None:
         self.visit_time[v] = self.time
         self.remaining -= 1
-        parent, unexplored = self.parent, self.unexplored
+        parent, unexplored, unfinished = self.parent, self.unexplored, self.unfinished_nodes
+        closed = 0  # the path nodes whose subtree this visit completes: a prefix from v up
         while v >= 0:
             unexplored[v] -= 1
+            if unexplored[v] == 0:
+                closed += 1
+            unfinished[v] -= closed
             v = parent[v]
+
+    def _explored_with_robots_below(self) -> dict[int, int]:
+        """Per subtree, its explored nodes that still have robots strictly below them (the
+        paper's inhabited nodes): exactly the explored proper ancestors of occupied nodes."""
+        parent, unexplored = self.parent, self.unexplored
+        ancestors: set[int] = set()
+        for x in self.at:
+            w = parent[x]
+            while w >= 0 and w not in ancestors:
+                ancestors.add(w)
+                w = parent[w]
+        counts: dict[int, int] = {}
+        for w in ancestors:
+            if unexplored[w] == 0:
+                while w >= 0:
+                    counts[w] = counts.get(w, 0) + 1
+                    w = parent[w]
+        return counts
 
 
 def _subtree_sizes_and_heights(parent: list[int],

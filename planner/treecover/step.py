@@ -32,9 +32,18 @@ class NodeRule(Protocol):
 _RULES: dict[Algo, NodeRule] = {Algo.NCOCTA: ncocta.RULE, Algo.COCTA: cocta.RULE}
 
 
+def rule_for(algo: Algo) -> NodeRule:
+    """The node rule of ``algo`` (shared by the step driver and the loop-iteration driver)."""
+    return _RULES[algo]
+
+
 def decide(state: CoverageState, algo: Algo, splits: Splits) -> list[Move]:
     """The moves every robot makes in the next step."""
-    rule = _RULES[algo]
+    return decide_with(state, rule_for(algo), splits)
+
+
+def decide_with(state: CoverageState, rule: NodeRule, splits: Splits) -> list[Move]:
+    """:func:`decide` for any node rule (alternative readings are measured with it)."""
     parent, at = state.parent, state.at
     order = sorted(at, key=state.level.__getitem__)
     moves: list[Move] = []

@@ -1,0 +1,51 @@
+"""Wire messages of connected tree coverage in the fleet (NCOCTA / COCTA, docs/treecover.md).
+
+Registered with the same codec registry as bus.messages (the ``message`` decorator), so
+``bus.codec`` encodes and decodes them strictly like every other kind; import this module
+before decoding them with ``decode_any``.
+
+Nodes are the tree's node ids (0 is the root); ``step`` counts synchronous steps from 0 (all
+robots on the root).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+from bus.messages import message
+
+
+@message
+@dataclass(frozen=True)
+class TreeReport:
+    """Robot ``robot`` stands on ``node`` at ``step``. ``sender`` is the robot transmitting
+    this copy: ``robot`` itself for its own report, another robot when relaying it (the radio
+    reaches only robots on the same or an adjacent node, so reports travel hop by hop)."""
+
+    KIND: ClassVar[str] = "tree_report"
+    robot: int
+    incarnation: int
+    step: int
+    node: int
+    sender: int
+
+
+@message
+@dataclass(frozen=True)
+class RadioStats:
+    """The radio relay's counters, the reply of its ``tree/radio`` queryable.
+
+    ``transmissions`` copies received on outboxes; ``deliveries`` copies put on inboxes;
+    ``refused`` (copy, robot) pairs not delivered because the robot was out of range;
+    ``pending`` pairs held until the robot reports where it stands at that step;
+    ``unlocated`` transmissions from a robot whose node at that step was unknown (dropped);
+    ``spoofed`` copies whose ``sender`` was not the outbox's robot (dropped)."""
+
+    KIND: ClassVar[str] = "radio_stats"
+    transmissions: int
+    deliveries: int
+    refused: int
+    pending: int
+    unlocated: int
+    spoofed: int

@@ -1,0 +1,109 @@
+"""``mstc tree-fleet``: NCOCTA / COCTA as separate processes with a radio model (paper 001).
+
+Starts an embedded router on a free 127.0.0.1 port, the radio relay (``mstc radio``) and one
+``mstc tree-agent`` per robot, prints progress, and reports the coverage time and SF seen in
+the robots' reports beside the lockstep simulator's (``run_coverage``) for the same input.
+
+Exit codes: 0 covered, connected at every step and equal to the lockstep run; 1 otherwise (a
+process failed, the run stalled, or the results differ); 2 usage or start-up error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+
+from bus.argtypes import positive, positive_int
+from deploy.cli import UsageError
+from deploy.fleet import default_run_dir, unique_mission, usage_errors_as_lines
+from deploy.tree_fleet import TreeFleet, TreeFleetOptions, TreeFleetOutcome
+from planner.treecover.sim import run_coverage
+from planner.treecover.trees import tree_from_spec
+from planner.treecover.types import CoverageResult, Tree
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--tree", required=True,
+                        help="perfect:N=3,H=4 | general:N=2,H=6,remove=R,at=HEIGHT,seed=S | "
+                             "office | FILE.tree")
+    parser.add_argument("--robots", type=positive_int, required=True, help="team size k")
+    parser.add_argument("--algo", choices=["cocta", "ncocta"], default="cocta")
+    parser.add_argument("--listen", metavar="ENDPOINT",
+                        help="router endpoint (default: a free port on 127.0.0.1)")
+    parser.add_argument("--run-dir", metavar="DIR", help="logs and pids (default runs/...)")
+    parser.add_argument("--step-timeout", type=positive, default=10.0, metavar="SECONDS",
+                        help="an agent's longest wait for one step's reports (default 10)")
+    parser.add_argument("--stall-timeout", type=positive, default=30.0, metavar="SECONDS",
+                        help="give up when no step completes for this long (default 30)")
+    parser.add_argument("--lease-ms", type=positive_int, default=5000,
+                        help="Zenoh lease of every process (default 5000: tolerant of a "
+                             "CPU-starved machine)")
+    parser.add_argument("--kill", type=kill_order, metavar="ROBOT@STEP",
+                        help="SIGKILL robot ROBOT's agent once step STEP is complete (the "
+                             "team then stops: trail repair is not built)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object at the end")
+
+
+def kill_order(text: str) -> tuple[int, int]:
+    robot, sep, step = text.partition("@")
+    if not sep or not (robot.isascii() and robot.isdigit() and step.isascii()
+                       and step.isdigit()):
+        raise argparse.ArgumentTypeError(f"expected ROBOT@STEP such as 2@10, got {text!r}")
+    return int(robot), int(step)
+
+
+def run(args: argparse.Namespace) -> int:
+    return usage_errors_as_lines("tree-fleet", _run, args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    tree = tree_from_spec(args.tree)
+    if args.kill is not None and args.kill[0] >= args.robots:
+        raise UsageError(f"--kill {args.kill[0]}@...: robots are 0..{args.robots - 1}")
+    lockstep = run_coverage(tree, args.robots, args.algo)  # also rejects infeasible inputs
+    mission = unique_mission()
+    options = TreeFleetOptions(
+        tree=args.tree, robots=args.robots, algo=args.algo, mission=mission,
+        run_dir=default_run_dir(mission) if args.run_dir is None else args.run_dir,
+        endpoint=args.listen, lease_ms=args.lease_ms, step_timeout=args.step_timeout,
+        stall_timeout=args.stall_timeout, kill=args.kill)
+    say = (lambda _text: None) if args.json else (lambda text: print(text, flush=True))
+    outcome = asyncio.run(TreeFleet(options, say).run())
+    summary = summarize(tree, lockstep, outcome)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        for key, value in summary.items():
+            print(f"{key:>22}: {value}")
+    return 0 if summary["verdict"] == "ok" else 1
+
+
+def summarize(tree: Tree, lockstep: CoverageResult,
+              outcome: TreeFleetOutcome) -> dict[str, object]:
+    seen, radio = outcome.observed, outcome.radio
+    time = seen.coverage_time
+    problems = [] if outcome.ok else [outcome.message]
+    if time != lockstep.time:
+        problems.append(f"fleet coverage time {time} != lockstep {lockstep.time}")
+    if seen.visited != tree.n:
+        problems.append(f"visited {seen.visited} of {tree.n} nodes")
+    if not seen.connected or seen.jumps:
+        problems.append(f"connected at every step: {seen.connected}, jumps: {seen.jumps}")
+    return {
+        "tree": tree.name, "nodes": tree.n, "height": tree.height,
+        "algo": lockstep.algo.value, "robots": lockstep.robots,
+        "split_heights": list(lockstep.splits.heights),
+        "coverage_time": time, "lockstep_time": lockstep.time,
+        "speedup": round(lockstep.single_time / time, 4) if time else None,
+        "visited": seen.visited, "connected_every_step": seen.connected,
+        "wall_seconds": round(outcome.wall_seconds, 2),
+        "mission_seconds": None if outcome.mission_seconds is None else
+        round(outcome.mission_seconds, 2),
+        "transmissions": seen.transmissions,
+        "deliveries": radio.deliveries if radio else None,
+        "refused_out_of_range": radio.refused if radio else None,
+        "radio_pending": radio.pending if radio else None,
+        "radio_dropped": (radio.unlocated + radio.spoofed) if radio else None,
+        "verdict": "ok" if not problems else "; ".join(problems),
+    }

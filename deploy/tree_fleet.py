@@ -1,0 +1,241 @@
+"""The launcher behind ``mstc tree-fleet``: router, radio and K tree agents on loopback.
+
+Processes are started with deploy.fleet's helpers (their own sessions, logs in the run
+directory) in the order router, launcher's bus session (so no report is missed), radio, agents;
+the launcher then watches every outbox through a TeamObserver and the agents' exit codes until
+all agents are done, one fails, or nothing moves for ``stall_timeout`` seconds. Whatever ended
+the run, children are stopped agents first, then the radio, then the router.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import signal
+import socket
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from bus import keys
+from bus.bridge import BoundedFifo, Bus
+from bus.config import ConnectionSettings
+from bus.router import READY_MARK as ROUTER_READY
+from bus.tree_messages import RadioStats, TreeReport
+from deploy.fleet import Child, FleetError, RunDir, log_tail, mstc_argv, stop_children
+from deploy.tree_observer import ObservedRun, TeamObserver
+from planner.treecover.trees import tree_from_spec
+from simhw.radio import READY_MARK as RADIO_READY
+
+TICK_S = 0.1
+STOP_GRACE_S = 5.0
+SETTLE_S = 2.0
+
+
+@dataclass(frozen=True)
+class TreeFleetOptions:
+    tree: str
+    robots: int
+    algo: str
+    run_dir: Path
+    mission: str
+    endpoint: str | None = None  # None: a free port on 127.0.0.1
+    lease_ms: int = 5000
+    step_timeout: float = 10.0
+    stall_timeout: float = 30.0
+    dead_after: float = 5.0
+    kill: tuple[int, int] | None = None  # (robot, step): SIGKILL its agent at that step
+
+
+@dataclass(frozen=True)
+class TreeFleetOutcome:
+    ok: bool
+    message: str
+    observed: ObservedRun
+    radio: RadioStats | None
+    wall_seconds: float  # start-up of every process included
+    mission_seconds: float | None  # first report to the report that completed coverage
+
+
+def free_endpoint() -> str:
+    """A tcp endpoint on 127.0.0.1 whose port the OS says is free right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
+
+
+async def _wait_ready(child: Child, mark: str, timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if mark in log_tail(child.log, 50):
+            return
+        if child.returncode is not None:
+            last = log_tail(child.log, 3) or f"exit code {child.returncode}"
+            raise FleetError(f"{child.name} failed to start: {last} (log: {child.log})")
+        await asyncio.sleep(0.05)
+    raise FleetError(f"{child.name} not ready after {timeout:.0f} s (log: {child.log})")
+
+
+class TreeFleet:
+    """Starts, watches and stops one tree-coverage fleet."""
+
+    def __init__(self, options: TreeFleetOptions, say: Callable[[str], None]) -> None:
+        self.options = options
+        self.say = say
+        self.endpoint = options.endpoint or free_endpoint()
+        self.run_dir = RunDir(options.run_dir).create()
+        self.observer = TeamObserver(tree_from_spec(options.tree), options.robots)
+        self.router: Child | None = None
+        self.radio: Child | None = None
+        self.agents: list[Child] = []
+        self.killed: str | None = None
+        self.t0 = time.monotonic()
+        self.first_report: float | None = None
+        self.stopped_by: str | None = None  # the signal that asked us to stop
+        self.covered_at: float | None = None
+
+    def _spawn(self, name: str, role: str, argv: list[str], robot: int | None = None) -> Child:
+        child = Child(name, role, argv, self.run_dir.log_path(name), robot)
+        self.run_dir.write_pid(child.record)
+        return child
+
+    def _connection(self) -> list[str]:
+        o = self.options
+        return ["--connect", self.endpoint, "--mission", o.mission, "--lease-ms",
+                str(o.lease_ms)]
+
+    def _install_signals(self) -> list[int]:
+        # the children run in their own sessions: a terminal's Ctrl-C or hang-up reaches only
+        # us, and we must stop them rather than die and orphan them
+        loop = asyncio.get_running_loop()
+        handled: list[int] = []
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                loop.add_signal_handler(sig, self._stop_on, sig)
+                handled.append(sig)
+        return handled
+
+    def _stop_on(self, sig: int) -> None:
+        self.stopped_by = signal.Signals(sig).name
+
+    async def run(self) -> TreeFleetOutcome:
+        o = self.options
+        handled = self._install_signals()
+        try:
+            self.router = self._spawn("router", "router", mstc_argv(
+                "router", "--listen", self.endpoint, "--lease-ms", str(o.lease_ms),
+                "--exit-with-parent"))
+            await _wait_ready(self.router, ROUTER_READY, 20.0)
+            settings = ConnectionSettings(connect=(self.endpoint,), mission=o.mission,
+                                          lease_ms=o.lease_ms)
+            async with Bus.connect(settings) as bus:
+                bus.subscribe(keys.all_tree_outboxes(o.mission), TreeReport,
+                              lambda _k, r: self._on_transmission(r),
+                              BoundedFifo(1 << 20))
+                await self._start(o)
+                ok, message = await self._watch()
+                replies = await bus.query(keys.tree_radio(o.mission), None, RadioStats,
+                                          timeout=2.0)
+            radio = replies[0].msg if replies else None
+            mission = None if self.covered_at is None or self.first_report is None else \
+                self.covered_at - self.first_report
+            return TreeFleetOutcome(ok, message, self.observer.run(), radio,
+                                    time.monotonic() - self.t0, mission)
+        finally:
+            self.shutdown()
+            for sig in handled:
+                asyncio.get_running_loop().remove_signal_handler(sig)
+
+    def _on_transmission(self, report: TreeReport) -> None:
+        now = time.monotonic()
+        if self.first_report is None:
+            self.first_report = now
+        self.observer.on_transmission(report)
+        if self.covered_at is None and self.observer.coverage_time is not None:
+            self.covered_at = now
+
+    async def _start(self, o: TreeFleetOptions) -> None:
+        common = ["--tree", o.tree, "--robots", str(o.robots)]
+        self.radio = self._spawn("radio", "radio", mstc_argv("radio", *common,
+                                                             *self._connection()))
+        await _wait_ready(self.radio, RADIO_READY, 20.0)
+        for robot in range(o.robots):
+            self.agents.append(self._spawn(f"agent-{robot}", "agent", mstc_argv(
+                "tree-agent", "--id", str(robot), *common, "--algo", o.algo,
+                "--step-timeout", str(o.step_timeout), "--dead-after", str(o.dead_after),
+                *self._connection()), robot))
+        self.say(f"fleet up: mission {o.mission} on {self.endpoint}, radio and {o.robots} "
+                 f"agents ({o.algo}), run dir {self.run_dir.path}")
+
+    async def _watch(self) -> tuple[bool, str]:
+        """Until every agent has ended, something failed, or no step completes for long."""
+        o, seen = self.options, self.observer
+        last_step, last_change, last_print = -1, time.monotonic(), 0.0
+        while True:
+            now = time.monotonic()
+            if self.stopped_by is not None:
+                return False, f"stopped by {self.stopped_by}"
+            self._maybe_kill()
+            failure = self._failed_child()
+            if failure is not None:
+                return False, failure
+            if all(a.returncode is not None for a in self.agents):
+                if self.killed is not None:
+                    return False, self._after_kill()
+                await self._settle()
+                return True, "every agent finished"
+            if seen.complete != last_step:
+                last_step, last_change = seen.complete, now
+            elif now - last_change > o.stall_timeout:
+                return False, (f"no step completed for {o.stall_timeout:g} s (last step "
+                               f"{last_step}); agent logs in {self.run_dir.logs}")
+            if now - last_print >= 1.0:
+                last_print = now
+                self.say(f"[{now - self.t0:6.1f}s] step {max(last_step, 0)}: visited "
+                         f"{seen.visited}/{len(seen.seen)} nodes, "
+                         f"{seen.transmissions} transmissions")
+            await asyncio.sleep(TICK_S)
+
+    def _failed_child(self) -> str | None:
+        """Why the run failed, if the router or radio ended or an agent failed (after a kill
+        the survivors are expected to give up: they may all end)."""
+        for child in (self.router, self.radio, *self.agents):
+            code = None if child is None else child.returncode
+            if child is None or code is None:
+                continue
+            if child.role != "agent" or (code != 0 and self.killed is None):
+                return (f"{child.name} exited with code {code}; last lines of {child.log}:\n"
+                        f"{child.tail(6)}")
+        return None
+
+    def _maybe_kill(self) -> None:
+        kill = self.options.kill
+        if kill is None or self.killed is not None or self.observer.complete < kill[1]:
+            return
+        victim = self.agents[kill[0]]
+        victim.expected_exit = True
+        victim.signal(signal.SIGKILL)
+        self.killed = f"robot {kill[0]} killed (SIGKILL) after step {self.observer.complete}"
+        self.say(f"[{time.monotonic() - self.t0:6.1f}s] {self.killed}")
+
+    def _after_kill(self) -> str:
+        codes = {a.robot: a.returncode for a in self.agents if not a.expected_exit}
+        reasons = [line for a in self.agents if not a.expected_exit
+                   for line in a.tail(3).splitlines() if "error" in line][:1]
+        return (f"{self.killed}; the other agents ended with exit codes {codes}"
+                + (f"; e.g. {reasons[0]}" if reasons else ""))
+
+    async def _settle(self) -> None:
+        """Let the last reports, already sent by agents that have exited, reach us."""
+        deadline = time.monotonic() + SETTLE_S
+        while self.observer.coverage_time is None and time.monotonic() < deadline:
+            await asyncio.sleep(TICK_S)
+
+    def shutdown(self) -> None:
+        """Stop the agents, then the radio, then the router."""
+        for group in (self.agents, [self.radio], [self.router]):
+            stop_children([c for c in group if c is not None], STOP_GRACE_S)
+        for child in (*self.agents, self.radio, self.router):
+            if child is not None:
+                self.run_dir.remove_pid(child.name)
