@@ -8,109 +8,27 @@ from collections.abc import Sequence
 
 import numpy as np
 import pytest
+from balanced_helpers import (
+    check_balanced,
+    check_regions,
+    crowded,
+    grid_of,
+    instances,
+    relaxed,
+)
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from planner.balanced import Partition, balanced_plan, partition
-from planner.balanced.plan import FALLBACK, WALK_OUT
-from planner.balanced.regions import _partition_state
-from planner.balanced.relocate import relocation_routes
+from planner.balanced import balanced_plan, partition
+from planner.balanced.coverage import region_path
+from planner.balanced.plan import WALK_OUT
 from planner.balanced.seeds import open_walk_ok, share_cell
 from planner.balanced.takeover import simulate_failures
 from planner.errors import UnsupportedPlanError
-from planner.grid import WorkArea, expand, label_components, sub_cells_of, work_area
+from planner.grid import expand, label_components, sub_cells_of, work_area
 from planner.invariants import check_coverage, check_path_moves, check_plan
 from planner.placement import random_starts
 from planner.types import OccupancyGrid, SubCell
-
-
-def relaxed(plan_notes: Sequence[str]) -> bool:
-    """Plans that promise coverage but not one visit per sub-cell (see planner.balanced.plan)."""
-    return any(note.startswith((FALLBACK, WALK_OUT)) for note in plan_notes)
-
-
-def grid_of(rows: Sequence[str]) -> OccupancyGrid:
-    """Coarse-cell picture ('#' blocked) as a sub-cell grid."""
-    coarse = np.array([[ch != "#" for ch in row] for row in rows], dtype=bool)
-    return OccupancyGrid(expand(coarse))
-
-
-@st.composite
-def instances(draw: st.DrawFn, max_side: int = 7, max_k: int = 8
-              ) -> tuple[OccupancyGrid, tuple[SubCell, ...], int]:
-    """A random coarse map, k random distinct starts in its largest component, a seed."""
-    h = draw(st.integers(1, max_side))
-    w = draw(st.integers(1, max_side))
-    seed = draw(st.integers(0, 10_000))
-    rng = np.random.default_rng(seed)
-    density = draw(st.sampled_from([0.0, 0.1, 0.25, 0.4]))
-    coarse = rng.random((h, w)) >= density
-    if not coarse.any():
-        coarse[0, 0] = True
-    grid = OccupancyGrid(expand(coarse))
-    labels, _ = label_components(coarse)
-    biggest = int(np.bincount(labels.ravel())[1:].max())
-    k = draw(st.integers(1, min(max_k, 4 * biggest)))
-    return grid, random_starts(grid, k, seed), seed
-
-
-@st.composite
-def crowded(draw: st.DrawFn) -> tuple[OccupancyGrid, tuple[SubCell, ...], int]:
-    """Small maps where several robots start in the same cell (2 to 4 per cell)."""
-    grid, starts, seed = draw(instances(max_side=5, max_k=4))
-    area = work_area(grid, starts)
-    cells = np.argwhere(area.cells)
-    rng = np.random.default_rng(seed)
-    extra: list[SubCell] = []
-    for _ in range(draw(st.integers(1, 3))):
-        r, c = cells[rng.integers(len(cells))]
-        subs = list(sub_cells_of((int(r), int(c))))
-        count = int(rng.integers(2, 5))
-        extra.extend(subs[i] for i in rng.choice(4, size=count, replace=False))
-    merged = tuple(dict.fromkeys([*starts, *extra]))
-    return grid, merged, seed
-
-
-def check_regions(parts: Partition, area_cells: np.ndarray, starts: Sequence[SubCell]) -> None:
-    """Regions tile the area's sub-cells; whole cells connected; leaves hang off own cells."""
-    owner = np.full(expand(area_cells).shape, -1)
-    for region in parts.regions:
-        assert region.start == starts[region.robot]
-        subs = [s for cell in region.cells for s in sub_cells_of(cell)]
-        subs += [s for leaf in region.leaves for s in leaf.subs]
-        for s in subs:
-            assert owner[s] == -1, f"sub-cell {s} in two regions"
-            owner[s] = region.robot
-        assert region.start in subs
-        if region.cells:
-            mask = np.zeros(area_cells.shape, dtype=bool)
-            mask[tuple(np.array(region.cells).T)] = True
-            assert label_components(mask)[1] == 1, f"robot {region.robot}: split region"
-        for leaf in region.leaves:
-            assert set(leaf.subs) <= set(sub_cells_of(leaf.cell))
-            if leaf.anchor is not None:
-                assert leaf.anchor in region.cells
-                assert abs(leaf.anchor[0] - leaf.cell[0]) + abs(leaf.anchor[1] - leaf.cell[1]) == 1
-            else:
-                assert not region.cells
-    assert ((owner >= 0) == expand(area_cells)).all()
-
-
-def check_balanced(grid: OccupancyGrid, starts: tuple[SubCell, ...], seed: int) -> None:
-    area = work_area(grid, starts)
-    plan = balanced_plan(area, seed=seed)
-    assert plan.algo == "balanced"
-    assert plan.k == len(starts)
-    assert plan.makespan >= math.ceil(area.n / len(starts)) - 1
-    if relaxed(plan.notes):
-        check_plan(plan, area, max_visits=len(starts) + 1, own_revisits_only=False)
-        return
-    check_plan(plan, area)  # every sub-cell exactly once, by one robot, 4-adjacent moves
-    parts = partition(area, seed=seed)
-    assert parts is not None
-    check_regions(parts, area.cells, starts)
-    assert [rp.steps for rp in plan.robots] == [size - 1 for size in parts.sizes]
-    assert sum(rp.steps + 1 for rp in plan.robots) == area.n
 
 
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -140,11 +58,21 @@ def test_shared_cell_in_corners_and_corridors(rows: list[str],
 def test_dead_end_pair_gets_the_corridor() -> None:
     # Robots in the near half of a dead end of a corridor: anchoring at the only open side
     # needs the robot whose part is a run next to the anchor; both halves cannot anchor.
-    grid = grid_of(["....."])
-    plan = balanced_plan(work_area(grid, ((0, 8), (1, 8))), seed=0)
-    assert not relaxed(plan.notes)
-    check_plan(plan)
-    assert sum(rp.steps + 1 for rp in plan.robots) == 20
+    area = work_area(grid_of(["....."]), ((0, 8), (1, 8)))
+    parts = partition(area, seed=0)
+    assert parts is not None
+    check_regions(parts, area.cells, area.starts)
+    for region in parts.regions:  # each robot's walk covers its region once, from its start
+        path = region_path(region, seed=0)
+        check_path_moves(path)
+        assert path[0] == region.start and len(set(path)) == len(path) == region.size
+    # Walking along a corridor costs half of covering it (2 moves a cell against 4), so the
+    # plan sends robot 1 past robot 0's part instead: regions 3 and 17 give 16 moves, the
+    # walk gives 12 (robot 1: 5 moves out, then 8 sub-cells; robot 0: 12 sub-cells).
+    plan = balanced_plan(area, seed=0)
+    check_plan(plan, area, max_visits=3, own_revisits_only=False)
+    assert max(parts.sizes) - 1 == 16
+    assert plan.makespan == 12
 
 
 def test_robot_boxed_in_a_dead_end_walks_out() -> None:
@@ -338,91 +266,3 @@ def test_shared_cell_division_is_always_found() -> None:
             share = share_cell(cell, list(range(count)), list(chosen), lambda _: False)
             kept = [s for _, keep, _ in share.parts for s in keep]
             assert sorted(kept) == sorted(subs)
-
-
-# --- squeezed robots moved to roomier seeds (relocate.py) ------------------------------
-
-
-def _cell_distances(area_cells: np.ndarray, sources: Sequence[tuple[int, int]]
-                    ) -> dict[tuple[int, int], int]:
-    """Oracle: breadth-first distances over a grid's free cells from the nearest source."""
-    h, w = area_cells.shape
-    dist = dict.fromkeys(sources, 0)
-    frontier = list(sources)
-    while frontier:
-        nxt = []
-        for r, c in frontier:
-            for cell in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
-                if 0 <= cell[0] < h and 0 <= cell[1] < w and area_cells[cell] \
-                        and cell not in dist:
-                    dist[cell] = dist[(r, c)] + 1
-                    nxt.append(cell)
-        frontier = nxt
-    return dist
-
-
-def _is_cut(area_cells: np.ndarray, cell: tuple[int, int]) -> bool:
-    without = area_cells.copy()
-    without[cell] = False
-    return bool(label_components(without)[1] > label_components(area_cells)[1])
-
-
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(instances(max_side=7, max_k=8), st.integers(1, 4))
-def test_relocation_walks_go_to_roomier_open_cells(
-        case: tuple[OccupancyGrid, tuple[SubCell, ...], int], radius: int) -> None:
-    grid, starts, seed = case
-    area = work_area(grid, starts)
-    state = _partition_state(area, seed, None, None)
-    if state is None:
-        return
-    homes = [(r // 2, c // 2) for r, c in starts]
-    together = relocation_routes(area, state, range(len(starts)), radius)
-    targets = [(w[-1][0] // 2, w[-1][1] // 2) for w in together.values()]
-    assert len(set(targets)) == len(targets)
-    assert not set(targets) & set(homes)
-    for robot in range(len(starts)):  # one at a time: room is measured from the others' homes
-        walk = relocation_routes(area, state, [robot], radius).get(robot)
-        if walk is None:
-            continue
-        check_path_moves(walk)
-        assert walk[0] == starts[robot]
-        assert all(area.sub_cells[s] for s in walk)
-        target = (walk[-1][0] // 2, walk[-1][1] // 2)
-        reach = _cell_distances(area.sub_cells, [starts[robot]])  # a shortest walk there
-        assert len(walk) - 1 == min(reach[s] for s in sub_cells_of(target))
-        assert target not in homes and not _is_cut(area.cells, target)
-        assert _cell_distances(area.cells, [homes[robot]])[target] <= radius
-        others = [h for i, h in enumerate(homes) if i != robot]
-        room = _cell_distances(area.cells, others)
-        assert room[target] > room[homes[robot]]
-
-
-def _issue_instance(k: int, seed: int, obstacles: int = 80) -> WorkArea:
-    """The issue's setting (as benchmarks/bench_balanced.py): 20 x 30 cells, random blocks."""
-    rng = np.random.default_rng(seed)
-    coarse = np.ones((20, 30), dtype=bool)
-    coarse.ravel()[rng.choice(coarse.size, size=obstacles, replace=False)] = False
-    grid = OccupancyGrid(expand(coarse))
-    return work_area(grid, random_starts(grid, k, seed))
-
-
-@pytest.mark.parametrize(("k", "seed"), [(20, 4), (30, 2), (30, 5)])
-def test_crowded_starts_plan_is_valid_and_never_worse_than_one_partition(
-        k: int, seed: int) -> None:
-    # Instances where balancing stalls on strips (see docs/balanced.md): whatever walks the
-    # plan adds, it covers everything, and its makespan (walks included) is no larger than
-    # that of the single partition without them.
-    area = _issue_instance(k, seed)
-    plan = balanced_plan(area, seed=seed)
-    alone = partition(area, seed=seed)
-    assert alone is not None
-    if relaxed(plan.notes):
-        check_plan(plan, area, max_visits=k + 1, own_revisits_only=False)
-    else:
-        check_plan(plan, area)
-    assert plan.makespan <= max(alone.sizes) - 1
-    assert plan.makespan >= math.ceil(area.n / k) - 1
-    for rp in plan.robots:  # a walk then its region: all moves 4-adjacent, start kept
-        check_path_moves(rp.path)
-        assert rp.path[0] == area.starts[rp.robot]

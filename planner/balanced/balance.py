@@ -162,10 +162,10 @@ def _takers(state: PartitionState, giver: int, unit: int) -> list[int]:
     repeats cheap.
     """
     hit = state.takers.get((giver, unit))
-    if hit is not None and hit[0] == state.version:
+    if hit is not None and hit[0] == state.region_version[giver]:
         return hit[1]
     found = sorted({state.label[m.anchor] for m in _moves(state, giver, None, unit)})
-    state.takers[(giver, unit)] = (state.version, found)
+    state.takers[(giver, unit)] = (state.region_version[giver], found)
     return found
 
 

@@ -8,6 +8,8 @@ neighbour's start) can be sent out first: ``escape_routes`` finds its way to the
 cell it could own, and a second partition seeds it there, its load counting the walk out.
 Robots squeezed into strips by neighbours that start beside them are moved the same way to
 roomier seeds a few cells off (relocate.py), greedily, while that lowers the largest load.
+If the largest load is still above the average, regions grown from well-spread seeds are
+tried too, every robot walking to the region an assignment gives it (assign.py).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterator, Sequence
 
+from planner.balanced.assign import assigned_partition
 from planner.balanced.balance import balance
 from planner.balanced.growth import grow, seed_regions, unclaimed
 from planner.balanced.relocate import relocation_routes, squeezed, sub_cell_route
@@ -62,7 +65,9 @@ def plan_regions(area: WorkArea, *, seed: int = 0
     a few cells away (relocate.py, one radius per try), or boxed-in robots walked out to the
     nearest open cell (escape_routes). A new partition is kept only if its largest load
     (walk included) is smaller, and later tries start from the best so far; at most
-    MAX_PARTITIONS partitions are made in all.
+    MAX_PARTITIONS partitions are made so. If the best is still above the average, robots
+    are assigned to regions grown from spread seeds (assign.py, up to 1 + ASSIGN_ROUNDS more
+    partitions), kept on the same terms.
     """
     state = _partition_state(area, seed, None, None)
     if state is None:
@@ -86,6 +91,11 @@ def plan_regions(area: WorkArea, *, seed: int = 0
         again = _partition_state(area, seed, starts, offsets)
         if again is not None and max(again.load) < max(best.load):
             best, best_routes = again, routes
+    if max(best.load) > goal:
+        assigned = assigned_partition(
+            area, lambda starts, offsets: _partition_state(area, seed, starts, offsets), goal)
+        if assigned is not None and max(assigned[0].load) < max(best.load):
+            best, best_routes = assigned
     return best.to_partition(best.transfers), best_routes
 
 

@@ -49,8 +49,8 @@ def relocation_routes(area: WorkArea, state: PartitionState, robots: Iterable[in
     for robot in robots:
         home = state.flat(cell_of(area.starts[robot]))
         others = [u for r, u in now.items() if r != robot]
-        room = _distances(state, others, area_cells)
-        near = _distances(state, [home], area_cells, limit=radius)
+        room = cell_distances(state, others, area_cells)
+        near = cell_distances(state, [home], area_cells, limit=radius)
         best = max(near, key=lambda u: (u not in avoid, room.get(u, 0), -near[u], -u))
         if best in avoid or room.get(best, 0) <= room.get(home, 0):
             continue
@@ -63,8 +63,8 @@ def relocation_routes(area: WorkArea, state: PartitionState, robots: Iterable[in
     return routes
 
 
-def _distances(state: PartitionState, sources: Sequence[int], cells: set[int],
-               limit: int | None = None) -> dict[int, int]:
+def cell_distances(state: PartitionState, sources: Sequence[int], cells: set[int],
+                   limit: int | None = None) -> dict[int, int]:
     """Breadth-first cell distances from the nearest source over ``cells`` (up to ``limit``)."""
     dist = dict.fromkeys(sources, 0)
     queue = deque(sources)

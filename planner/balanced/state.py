@@ -8,7 +8,7 @@ can log its inverse, so a chain of transfers that turns out infeasible half-way 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -52,9 +52,12 @@ class PartitionState:
         self.pins: dict[int, int] = {}
         self._cut: dict[int, set[int]] = {}
         self.pieces: dict[int, dict[int, list[int]]] = {}  # balance._piece cache
-        # balance._takers cache: (robot, unit) -> (version it was computed at, takers)
+        # balance._takers cache: (robot, unit) -> (region version it was computed at, takers)
         self.takers: dict[tuple[int, int], tuple[int, list[int]]] = {}
         self.version = 0  # bumped by every change
+        # per region: bumped when its cells, its pins or the owner of a cell next to it change
+        # (all that the moves out of a region depend on)
+        self.region_version: list[int] = [0] * self.k
         self._log: list[Callable[[], None]] | None = None
         self.transfers = 0
 
@@ -89,9 +92,20 @@ class PartitionState:
             self._log.append(undo)
 
     # -- changes -------------------------------------------------------------------------
+    def _touch(self, u: int, *robots: int) -> None:
+        """Bump the version of ``robots`` and of every region owning ``u`` or a neighbour."""
+        version = self.region_version
+        for robot in robots:
+            if robot >= 0:
+                version[robot] += 1
+        for v in (u, *self.neighbours[u]):
+            if self.label[v] >= 0:
+                version[self.label[v]] += 1
+
     def claim(self, robot: int, u: int) -> None:
         """Make free cell ``u`` a whole cell of ``robot``'s region."""
         self.label[u] = robot
+        self._touch(u)
         self.whole[robot].add(u)
         self.load[robot] += 4
         self._cut.pop(robot, None)
@@ -101,6 +115,7 @@ class PartitionState:
     def release(self, robot: int, u: int, label: int = UNCLAIMED) -> None:
         self.whole[robot].discard(u)
         self.label[u] = label
+        self._touch(u, robot)
         self.load[robot] -= 4
         self._cut.pop(robot, None)
         self.pieces.pop(robot, None)
@@ -119,6 +134,7 @@ class PartitionState:
     def pin(self, u: int) -> None:
         self.pieces.pop(self.label[u], None)  # cached pieces must now keep u
         self.pins[u] = self.pins.get(u, 0) + 1
+        self._touch(u)
         self._record(lambda: self.unpin(u))
 
     def unpin(self, u: int) -> None:
@@ -126,11 +142,13 @@ class PartitionState:
         self.pins[u] -= 1
         if not self.pins[u]:
             del self.pins[u]
+        self._touch(u)
         self._record(lambda: self.pin(u))
 
     def set_label(self, u: int, label: int) -> None:
         old = self.label[u]
         self.label[u] = label
+        self._touch(u, old)
         self._record(lambda: self.set_label(u, old))
 
     # -- queries -------------------------------------------------------------------------
@@ -184,7 +202,11 @@ class PartitionState:
 
 
 def articulation_points(nodes: set[int], neighbours: list[list[int]]) -> set[int]:
-    """Cut vertices of the subgraph induced by ``nodes`` (iterative Hopcroft-Tarjan)."""
+    """Cut vertices of the subgraph induced by ``nodes`` (iterative Hopcroft-Tarjan).
+
+    Each stack frame keeps its own neighbour iterator, so returning to a cell resumes its
+    scan instead of re-indexing it (this runs thousands of times per plan).
+    """
     out: set[int] = set()
     depth: dict[int, int] = {}
     low: dict[int, int] = {}
@@ -193,29 +215,29 @@ def articulation_points(nodes: set[int], neighbours: list[list[int]]) -> set[int
             continue
         depth[root] = low[root] = 0
         children = 0
-        stack: list[tuple[int, int, int]] = [(root, -1, 0)]
+        stack: list[tuple[int, int, Iterator[int]]] = [(root, -1, iter(neighbours[root]))]
         while stack:
-            u, parent, i = stack[-1]
-            nbrs = neighbours[u]
-            if i < len(nbrs):
-                stack[-1] = (u, parent, i + 1)
-                v = nbrs[i]
-                if v not in nodes or v == parent:
+            u, parent, rest = stack[-1]
+            for v in rest:
+                if v == parent or v not in nodes:
                     continue
-                if v in depth:
-                    low[u] = min(low[u], depth[v])
-                else:
+                seen = depth.get(v)
+                if seen is None:
                     depth[v] = low[v] = depth[u] + 1
-                    stack.append((v, u, 0))
-                continue
-            stack.pop()
-            if parent < 0:
-                continue
-            low[parent] = min(low[parent], low[u])
-            if parent == root:
-                children += 1
-            elif low[u] >= depth[parent]:
-                out.add(parent)
+                    stack.append((v, u, iter(neighbours[v])))
+                    break
+                if seen < low[u]:
+                    low[u] = seen
+            else:  # every neighbour done: u's subtree is finished
+                stack.pop()
+                if parent < 0:
+                    continue
+                if low[u] < low[parent]:
+                    low[parent] = low[u]
+                if parent == root:
+                    children += 1
+                elif low[u] >= depth[parent]:
+                    out.add(parent)
         if children > 1:
             out.add(root)
     return out

@@ -1,0 +1,186 @@
+"""Partitions of a second kind: balanced regions first, robots assigned to them afterwards.
+
+Where many robots start crowded together (issue 7, 80 obstacles, k = 30), regions grown from
+the starts are strips that the transfer chains cannot balance, and moving squeezed robots a
+few cells (relocate.py) only shifts the crowd. Regions grown from well-spread seeds balance
+to within a cell or two, so this module builds such regions and sends the robots to them:
+
+1. *spread seeds*: a robot's start cell is kept as a seed when it lies at least SPACING
+   cells (breadth-first) from every seed kept before it; the other seeds are placed
+   farthest-point (never on an articulation cell of the area or a start cell);
+2. the area is partitioned from those seeds (``make``, the usual pipeline);
+3. every robot is assigned one region (``assign_regions``): a robot costs its walk to the
+   region (shortest sub-cell path to its nearest sub-cell, 0 when it starts inside) plus the
+   region's size; the largest cost is minimised first, the total walk second;
+4. the area is partitioned again with every robot seeded where it enters its region (its
+   own start if it starts inside), its walk counted in its load, so the balancing spreads
+   the walks over all robots. Steps 3-4 run ASSIGN_ROUNDS times (each partition's regions
+   are nearer the robots than the last), keeping the partition with the smallest largest load.
+
+The caller keeps the result only if it beats the partitions grown from the starts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching, shortest_path
+
+from planner.balanced.relocate import cell_distances, sub_cell_route
+from planner.balanced.state import PartitionState, articulation_points
+from planner.grid import WorkArea, cell_of, sub_cells_of
+from planner.types import IntArray, SubCell
+
+SPACING = 4  # cells between robot starts kept as seeds
+ASSIGN_ROUNDS = 5  # assignment + partition rounds at most (each 0.02-0.04 s of CPU at k = 30)
+UNREACHABLE = 1 << 30  # a walk that cannot be made
+
+Routes = dict[int, tuple[SubCell, ...]]
+MakePartition = Callable[[Sequence[SubCell], Sequence[int] | None], PartitionState | None]
+
+
+def assigned_partition(area: WorkArea, make: MakePartition, goal: int
+                       ) -> tuple[PartitionState, Routes] | None:
+    """The best partition with robots assigned to regions grown from spread seeds.
+
+    ``make(starts, offsets)`` partitions the area with regions grown from ``starts`` (one
+    per robot) and ``offsets`` moves added to the loads. Rounds stop once the largest load
+    reaches ``goal``, after ASSIGN_ROUNDS, or when the robots' total walk stops shrinking
+    (the regions then no longer move towards the robots). Returns the partition and the
+    walks (start first) of the robots that start outside their region; None if none was made.
+    """
+    base = PartitionState(area.cells, area.starts)
+    seeds = spread_seeds(base, [base.flat(cell_of(s)) for s in area.starts], SPACING)
+    if len(seeds) < base.k:
+        return None
+    state = make([sub_cells_of(base.cell(u))[0] for u in seeds], None)
+    walks = start_distances(area)
+    best: tuple[PartitionState, Routes] | None = None
+    walked = UNREACHABLE
+    for _ in range(ASSIGN_ROUNDS):
+        if state is None:
+            break
+        routes = entry_routes(area, state, walks)
+        total = sum(len(route) - 1 for route in routes.values())
+        if total >= walked:
+            break
+        walked = total
+        starts = [routes[r][-1] if r in routes else s for r, s in enumerate(area.starts)]
+        offsets = [len(routes[r]) - 1 if r in routes else 0 for r in range(base.k)]
+        state = make(starts, offsets)
+        if state is not None and (best is None or max(state.load) < max(best[0].load)):
+            best = (state, routes)
+            if max(state.load) <= goal:
+                break
+    return best
+
+
+def spread_seeds(state: PartitionState, starts: Sequence[int], spacing: int) -> list[int]:
+    """One seed cell per robot: starts at least ``spacing`` cells apart, then farthest-point.
+
+    Starts are taken in robot order; the seeds are not tied to robots (step 3 assigns).
+    Fewer seeds than robots only when the area has fewer cells than robots.
+    """
+    cells = {u for u, free in enumerate(state.free) if free}
+    seeds: list[int] = []
+    for u in starts:
+        near = cell_distances(state, seeds, cells, limit=spacing - 1) if seeds else {}
+        if u not in near:
+            seeds.append(u)
+    # a seed inside a corridor would box a neighbour in, one on a start would share its cell
+    avoid = articulation_points(cells, state.neighbours) | set(starts)
+    while len(seeds) < len(starts):
+        room = cell_distances(state, seeds, cells)
+        candidates = [u for u in cells if room.get(u, UNREACHABLE) > 0]
+        if not candidates:
+            break  # fewer cells than robots
+        seeds.append(max(candidates, key=lambda u: (u not in avoid, room.get(u, UNREACHABLE), -u)))
+    return seeds
+
+
+def start_distances(area: WorkArea) -> IntArray:
+    """Breadth-first sub-cell distances from each start (k x rows*cols; UNREACHABLE: none)."""
+    free = area.sub_cells
+    h, w = free.shape
+    flat = free.ravel()
+    src, dst = [], []
+    for dr, dc in ((0, 1), (1, 0)):
+        pair = free[: h - dr, : w - dc] & free[dr:, dc:]
+        r, c = np.nonzero(pair)
+        src.append(r * w + c)
+        dst.append((r + dr) * w + c + dc)
+    a, b = np.concatenate(src), np.concatenate(dst)
+    graph = coo_matrix((np.ones(2 * a.size), (np.concatenate([a, b]), np.concatenate([b, a]))),
+                       shape=(flat.size, flat.size)).tocsr()
+    sources = [r * w + c for r, c in area.starts]
+    dist = shortest_path(graph, unweighted=True, indices=sources)
+    return np.where(np.isfinite(dist), dist, UNREACHABLE).astype(np.int64)
+
+
+def entry_routes(area: WorkArea, state: PartitionState, walks: IntArray) -> Routes:
+    """Walks (start first) of the robots to the regions ``assign_regions`` gives them.
+
+    A robot whose start lies in its region walks nowhere; the others walk to the nearest
+    sub-cell of a whole cell of their region that holds no robot's start (where their
+    region will be seeded).
+    """
+    w = area.sub_cells.shape[1]
+    start_cells = {state.flat(cell_of(s)) for s in area.starts}
+    inside: dict[int, int] = {}
+    entries: list[list[int]] = []
+    for robot in range(state.k):
+        entry = [r * w + c for u in state.whole[robot] if u not in start_cells
+                 for r, c in sub_cells_of(state.cell(u))]
+        entries.append(entry)
+        for sub in _region_subs(state, robot):
+            inside[sub[0] * w + sub[1]] = robot
+    travel = np.full((state.k, state.k), UNREACHABLE, dtype=np.int64)
+    for region, entry in enumerate(entries):
+        if entry:
+            travel[:, region] = walks[:, entry].min(axis=1)
+    for robot, (r, c) in enumerate(area.starts):
+        if r * w + c in inside:
+            travel[robot, inside[r * w + c]] = 0
+    sizes = np.asarray([4 * len(state.whole[x]) + sum(len(leaf.subs) for leaf in state.leaves[x])
+                        for x in range(state.k)], dtype=np.int64)
+    routes: Routes = {}
+    for robot, region in enumerate(assign_regions(travel, sizes)):
+        if travel[robot, region] == 0:
+            continue
+        goal = {(i // w, i % w) for i in entries[region]}
+        route = sub_cell_route(area, area.starts[robot], goal)
+        if route is not None:
+            routes[robot] = route
+    return routes
+
+
+def assign_regions(travel: IntArray, sizes: IntArray) -> list[int]:
+    """Region per robot minimising the largest ``travel + size``, then the total travel.
+
+    The bottleneck value comes from a binary search over the distinct costs with a perfect
+    bipartite matching test (scipy maximum_bipartite_matching); among assignments within it,
+    scipy's linear_sum_assignment picks the least total travel.
+    """
+    cost = travel + sizes[None, :]
+    values = np.unique(cost[travel < UNREACHABLE])
+    if values.size == 0:
+        return list(range(travel.shape[0]))  # no walk can be made: everyone stays
+    lo, hi = 0, len(values) - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        allowed = csr_matrix((cost <= values[mid]) & (travel < UNREACHABLE))
+        if (maximum_bipartite_matching(allowed, perm_type="column") >= 0).all():
+            hi = mid
+        else:
+            lo = mid + 1
+    masked = np.where((cost <= values[lo]) & (travel < UNREACHABLE), travel, UNREACHABLE)
+    _, regions = linear_sum_assignment(masked)
+    return [int(x) for x in regions]
+
+
+def _region_subs(state: PartitionState, robot: int) -> list[SubCell]:
+    subs = [s for u in state.whole[robot] for s in sub_cells_of(state.cell(u))]
+    return subs + [s for leaf in state.leaves[robot] for s in leaf.subs]
