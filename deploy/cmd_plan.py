@@ -9,7 +9,6 @@ from typing import Any
 
 from bus.argtypes import positive_int
 from deploy.cli import UsageError
-from planner.balanced import balanced_plan
 from planner.grid import cell_of, work_area
 from planner.maps import resolve_world
 from planner.metrics import PlanMetrics, plan_metrics
@@ -117,6 +116,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--speeds and --fuel need --algo opt (paper 003, section 4.3)")
     area = work_area(grid, starts)
     if args.algo == "balanced":
+        from planner.balanced import balanced_plan  # scipy.optimize: only when asked for
+
         plan = balanced_plan(area, seed=args.seed)
     else:
         tree = build_tree(area.cells, args.tree, seed=args.seed,
