@@ -14,6 +14,7 @@ import importlib.util
 import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from planner.errors import PlannerError
 
@@ -53,8 +54,16 @@ def _available() -> dict[str, tuple[str, str]]:
     return found
 
 
+class ConciseParser(argparse.ArgumentParser):
+    """Argument errors as one line naming the command and where help is, without the full
+    usage block: `mstc up`'s usage is eight lines and would bury the one that matters."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ConciseParser(
         prog="mstc", description="Multi-robot spanning-tree coverage on Eclipse Zenoh.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, (module_name, text) in _available().items():
@@ -71,7 +80,7 @@ def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     name = next((a for a in argv if not a.startswith("-")), None)
     if name not in commands:
         return build_parser()
-    parser = argparse.ArgumentParser(prog="mstc")
+    parser = ConciseParser(prog="mstc")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     module_name, text = commands[name]
     module = importlib.import_module(module_name)

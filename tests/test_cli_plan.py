@@ -75,11 +75,32 @@ def test_user_mistakes_are_one_line(capsys: pytest.CaptureFixture[str], argv: li
     assert needle in err
 
 
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["up", "-n", "0"], "expected an integer >= 1, got '0'"),
+    (["up", "--algo", "foo"], "invalid choice: 'foo'"),
+    (["plan", "--map"], "expected one argument"),
+])
+def test_argument_errors_are_one_line_without_the_usage_block(
+        capsys: pytest.CaptureFixture[str], argv: list[str], needle: str) -> None:
+    with pytest.raises(SystemExit) as stopped:
+        main(argv)
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"mstc {argv[0]}: error:") and "\n" not in err
+    assert needle in err and f"mstc {argv[0]} --help" in err
+
+
 def test_plot_writes_a_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import matplotlib.image
+
     out = tmp_path / "plan.png"
     assert main(["plan", "--map", "example", "--random-robots", "3", "--plot", str(out)]) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "makespan" in capsys.readouterr().out
+    pixels = matplotlib.image.imread(out)
+    assert pixels.shape[0] >= 200 and pixels.shape[1] >= 200
+    colours = np.unique(pixels[..., :3].reshape(-1, 3).round(2), axis=0)
+    assert len(colours) >= 4  # background, obstacles and at least two robots' paths
 
 
 def test_obstacle_grids_stay_connected_with_the_requested_count() -> None:
