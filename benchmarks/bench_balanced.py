@@ -5,12 +5,15 @@
     .venv/bin/python benchmarks/bench_balanced.py --failures 5    # plus takeover replays
     .venv/bin/python benchmarks/bench_balanced.py --plot docs/img/balanced_regions.png
     .venv/bin/python benchmarks/bench_balanced.py --obstacles 80 --ks 20,30 --per-instance
+    .venv/bin/python benchmarks/bench_balanced.py --obstacles 80 --ks 30 --repeat 3
 
 Instances are generated from the seed: a rows x cols coarse grid (default 20 x 30, 2400
 sub-cells), with --obstacles random blocked cells, and k robots at distinct random sub-cells
 of the largest free component (planner.placement.random_starts). The work-area is that
 component, so the lower bound ceil(n/k) - 1 uses its n. Times are wall-clock (perf_counter)
 and CPU (process_time) seconds of one call; the machine's load shows in the first only.
+With --repeat N each plan is made N times and the fastest times are kept: on a machine
+shared with other jobs even CPU time varies by 20-50 % from run to run.
 """
 
 from __future__ import annotations
@@ -74,15 +77,19 @@ class Row:
                 f"{statistics.median(self.cpu):.3f} | {max(self.cpu):.3f} |")
 
 
-def measure(planner: Callable[[WorkArea, int], Plan], areas: list[tuple[WorkArea, int]]
-            ) -> tuple[Row, list[Plan]]:
+def measure(planner: Callable[[WorkArea, int], Plan], areas: list[tuple[WorkArea, int]],
+            repeat: int = 1) -> tuple[Row, list[Plan]]:
     row = Row([], [], [], [])
     plans = []
     for area, seed in areas:
-        wall, cpu = time.perf_counter(), time.process_time()
-        plan = planner(area, seed)
-        row.wall.append(time.perf_counter() - wall)
-        row.cpu.append(time.process_time() - cpu)
+        walls, cpus = [], []
+        for _ in range(repeat):
+            wall, cpu = time.perf_counter(), time.process_time()
+            plan = planner(area, seed)
+            walls.append(time.perf_counter() - wall)
+            cpus.append(time.process_time() - cpu)
+        row.wall.append(min(walls))
+        row.cpu.append(min(cpus))
         check(plan, area)
         row.bounds.append(math.ceil(area.n / len(area.starts)) - 1)
         row.makespans.append(plan.makespan)
@@ -149,6 +156,8 @@ def main() -> None:
     parser.add_argument("--plot", metavar="OUT.png", help="draw two instances and stop")
     parser.add_argument("--per-instance", action="store_true",
                         help="also list the balanced planner's moves over LB per seed")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="make each plan this many times and keep the fastest times")
     args = parser.parse_args()
     if args.plot:
         plot(args.plot, args.rows, args.cols)
@@ -163,14 +172,14 @@ def main() -> None:
             areas = [(instance(args.rows, args.cols, obstacles, k, seed), seed)
                      for seed in range(args.seeds)]
             tag = f"obstacles {obstacles}, k {k}"
-            row, plans = measure(lambda a, s: balanced_plan(a, seed=s), areas)
+            row, plans = measure(lambda a, s: balanced_plan(a, seed=s), areas, args.repeat)
             print(row.line(f"balanced ({tag})"), flush=True)
             if args.per_instance:
                 extra = [m - b for m, b in zip(row.makespans, row.bounds, strict=True)]
                 notes.append(f"{tag}: moves over LB by seed: {' '.join(map(str, extra))}")
             if not args.no_contrast:
-                print(measure(opt_mstc, areas)[0].line(f"opt-MSTC random tree ({tag})"),
-                      flush=True)
+                contrast = measure(opt_mstc, areas, args.repeat)[0]
+                print(contrast.line(f"opt-MSTC random tree ({tag})"), flush=True)
             if args.failures:
                 notes.append(f"{tag}: {takeover_line(plans, args.failures, k)}")
     for note in notes:
