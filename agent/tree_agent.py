@@ -10,22 +10,28 @@ out from where the radio expects it). With every report of t in hand it runs the
 walks its own. The step after the team is done (all nodes visited, all robots on the root) it
 reports once more, so everybody confirms the end, and leaves.
 
-Failures are not repaired: a peer declared dead (or announcing it stopped) while its report is
-missing, a report that disagrees with the replica, a stall, or a step not complete within
+A robot that dies is removed by every survivor at the same step boundary, the first step whose
+report from it never comes (agent.tree_barrier decides when that is known; the argument is in
+docs/treecover.md), and the replica repairs the trail. Deaths are learnt from the liveliness
+service (the infrastructure's view, not the radio's), from peers' ``stopped`` / ``fenced``
+events and from the ``dead`` set of the reports. A report whose ``gone`` set differs from the
+replica's, a report that disagrees with the replica, a stall, or a step not complete within
 ``--step-timeout`` end the mission with a MissionFailedError (exit 3), a status and a
-``stopped`` event saying why (which stops the peers waiting on this robot in turn).
+``stopped`` event saying why.
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import sys
 import time
 from dataclasses import dataclass
 
 from agent.errors import MissionFailedError
 from agent.lifecycle import AgentLife, run_agent
+from agent.tree_barrier import judge_step
 from bus import keys
 from bus.announce import Announcer
 from bus.argtypes import index, positive, positive_int
@@ -40,6 +46,8 @@ from planner.treecover.trees import tree_from_spec
 from planner.treecover.types import Algo
 
 DEFAULT_STEP_TIMEOUT = 10.0
+DEFAULT_SETTLE = 1.0  # the longest a dead robot's last report may still be on its way
+ASSEMBLY_POLL_S = 0.05
 INBOX_BACKLOG = 65536  # a step delivers at most k x k reports
 
 
@@ -51,6 +59,7 @@ class TreeAgentConfig:
     algo: Algo
     incarnation: int = 1
     step_timeout: float = DEFAULT_STEP_TIMEOUT
+    settle: float = DEFAULT_SETTLE
     heartbeat_period: float = 0.2
     dead_after: float = 3.0
     announce_period: float = 1.0
@@ -70,7 +79,11 @@ class TreeAgent(AgentLife):
         self.heard: dict[int, dict[int, int]] = {}  # step -> robot -> node
         self.later: dict[int, list[TreeReport]] = {}  # heard before this robot got there
         self.lost: dict[int, str] = {}  # robots dead or stopped -> why
+        self.lost_since: dict[int, float] = {}  # robots dead or stopped -> when we learnt it
+        self.mismatched = 0  # reports from robots our replica has removed (ignored)
         self.arrived = asyncio.Event()
+        # step -> robot -> the removals its report of that step carries
+        self.gone_seen: dict[int, dict[int, tuple[tuple[int, int], ...]]] = {}
         self.sent = 0
         self.duplicates = 0
         self.splits_text = ",".join(map(str, replica.splits.heights)) or "none"
@@ -112,7 +125,11 @@ class TreeAgent(AgentLife):
             self._lose(event.robot, f"{event.kind}: {event.detail}")
 
     def _lose(self, robot: int, why: str) -> None:
-        self.lost.setdefault(robot, why)
+        if robot == self.robot or robot in self.lost:
+            return
+        self.lost[robot] = why
+        self.lost_since[robot] = time.monotonic()
+        print(f"tree-agent {self.robot}: robot {robot} {why}", flush=True)
         self.arrived.set()
 
     def _transmit(self, report: TreeReport) -> None:
@@ -121,16 +138,23 @@ class TreeAgent(AgentLife):
 
     def _relay(self, report: TreeReport) -> None:
         self._transmit(TreeReport(report.robot, report.incarnation, report.step, report.node,
-                                  sender=self.robot))
+                                  self.robot, report.gone, report.dead))
 
     def _on_report(self, _key: str, report: TreeReport) -> None:
         if report.robot == self.robot or not 0 <= report.robot < self.config.robots:
             return
+        for robot in report.dead:
+            if 0 <= robot < self.config.robots:
+                self._lose(robot, f"dead according to robot {report.robot}")
         if report.step < self.step or report.robot in self.heard.get(report.step, {}):
             self.duplicates += 1
             return
+        if not self.replica.alive[report.robot]:
+            self.mismatched += 1  # removed at an earlier boundary: not part of the team
+            return
         known = self.heard.setdefault(report.step, {})
         known[report.robot] = report.node
+        self.gone_seen.setdefault(report.step, {})[report.robot] = report.gone
         if report.step == self.step:
             self._relay(report)
         else:
@@ -143,45 +167,78 @@ class TreeAgent(AgentLife):
         """Stand on ``node`` at ``step``: transmit our report first (the radio locates us by
         it), then what others reported for this step before we got here."""
         self.heard.pop(step - 1, None)
+        self.gone_seen.pop(step - 1, None)
         self.step = step
         self.heard.setdefault(step, {})[self.robot] = node
-        self._transmit(TreeReport(self.robot, self.incarnation, step, node, self.robot))
+        gone = tuple(sorted(self.replica.removed.items()))
+        self._transmit(TreeReport(self.robot, self.incarnation, step, node, self.robot, gone,
+                                  tuple(sorted(self.lost))))
         for report in self.later.pop(step, []):
             self._relay(report)
 
-    async def _gather(self, step: int) -> dict[int, int]:
-        """Every robot's node at ``step``, once all reports have arrived."""
+    async def _gather(self, step: int) -> tuple[dict[int, int], tuple[int, ...]]:
+        """The reports of ``step`` we can hear and the dead robots absent from it, once every
+        live robot in hearing has reported and every death has settled."""
         known = self.heard[step]
+        c, r = self.config, self.replica
+        waiting: tuple[int, ...] = ()
         try:
-            async with asyncio.timeout(self.config.step_timeout):
-                while len(known) < self.config.robots:
-                    lost = sorted(set(self.lost) - known.keys())
-                    if lost:
-                        why = "; ".join(f"robot {r} {self.lost[r]}" for r in lost)
-                        raise MissionFailedError(
-                            f"lost before reporting step {step}: {why} (trail repair is "
-                            "not built)")
+            async with asyncio.timeout(c.step_timeout):
+                while True:
+                    verdict = judge_step(r.state.parent, r.positions, r.alive, self.robot,
+                                         known.keys(), self.lost_since, time.monotonic(),
+                                         c.settle)
+                    waiting = verdict.waiting_for
+                    if verdict.ready:
+                        return dict(known), verdict.absent
                     self.arrived.clear()
-                    await self.arrived.wait()
+                    with contextlib.suppress(TimeoutError):
+                        async with asyncio.timeout(verdict.wake_in):
+                            await self.arrived.wait()
         except TimeoutError:
-            missing = sorted(set(range(self.config.robots)) - known.keys())
             raise MissionFailedError(
-                f"no report of step {step} from robot(s) {missing} within "
-                f"{self.config.step_timeout:g} s") from None
-        return dict(known)
+                f"no report of step {step} from robot(s) {list(waiting)} within "
+                f"{c.step_timeout:g} s") from None
+
+    def _check(self, step: int, reported: dict[int, int]) -> None:
+        """The reports agree with the replica: same robots removed, same nodes."""
+        gone = tuple(sorted(self.replica.removed.items()))
+        differ = sorted(robot for robot, theirs in self.gone_seen.get(step, {}).items()
+                        if theirs != gone)
+        if differ:
+            theirs = self.gone_seen[step][differ[0]]
+            raise MissionFailedError(
+                f"step {step}: robot {differ[0]} removed (robot, step) {list(theirs)}, robot "
+                f"{self.robot}'s replica {list(gone)}: the replicas have diverged")
+        wrong = self.replica.disagreeing(reported)
+        if wrong:
+            raise MissionFailedError(
+                f"step {step}: robot(s) {wrong} are not where robot {self.robot}'s replica "
+                "has them")
+
+    async def _assemble(self) -> None:
+        """Wait, at most a step timeout, until the liveliness service knows every peer. A
+        robot killed right after its first report might otherwise die before anyone saw its
+        token, and an unknown robot is never declared dead."""
+        peers = set(range(self.config.robots)) - {self.robot}
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(self.config.step_timeout):
+                while not peers <= self.liveness.detector.alive().keys() | self.lost.keys():
+                    await asyncio.sleep(ASSEMBLY_POLL_S)
 
     async def _mission(self) -> None:
         self._status("covering")
+        await self._assemble()
         started = time.monotonic()
         node = 0
         while True:
             self._enter(self.replica.step, node)
-            reported = await self._gather(self.replica.step)
-            wrong = self.replica.disagreeing(reported)
-            if wrong:
-                raise MissionFailedError(
-                    f"step {self.replica.step}: robot(s) {wrong} are not where robot "
-                    f"{self.robot}'s replica has them")
+            reported, absent = await self._gather(self.replica.step)
+            self._check(self.replica.step, reported)
+            if absent:
+                print(f"tree-agent {self.robot}: step {self.replica.step}: removing robot(s) "
+                      f"{list(absent)} (no report of this step)", flush=True)
+                self.replica.remove(absent)
             if self.replica.done():
                 break
             try:
@@ -189,7 +246,9 @@ class TreeAgent(AgentLife):
             except PlannerError as error:
                 raise MissionFailedError(str(error)) from error
         summary = (f"coverage time {self.replica.step} steps, sent {self.sent}, "
-                   f"duplicates {self.duplicates}, {time.monotonic() - started:.2f} s")
+                   f"duplicates {self.duplicates}, removed {sorted(self.replica.removed)}, "
+                   f"ignored from removed robots {self.mismatched}, "
+                   f"{time.monotonic() - started:.2f} s")
         print(f"tree-agent {self.robot}: done: {summary}", flush=True)
         self._status("done", summary)
         self._event("completed", detail=summary)
@@ -207,6 +266,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--step-timeout", type=positive, default=DEFAULT_STEP_TIMEOUT,
                         metavar="SECONDS",
                         help="longest wait for every report of one step (default %(default)s)")
+    parser.add_argument("--settle", type=positive, default=DEFAULT_SETTLE, metavar="SECONDS",
+                        help="how long a dead robot's last report may still be on its way "
+                             "(default %(default)s)")
     parser.add_argument("--heartbeat-period", type=positive, default=0.2, metavar="SECONDS")
     parser.add_argument("--dead-after", type=positive, default=3.0, metavar="SECONDS",
                         help="a robot silent this long is declared dead (default %(default)s)")
@@ -220,7 +282,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     config = TreeAgentConfig(robot=args.id, robots=args.robots, tree=args.tree,
                              algo=Algo(args.algo), incarnation=args.incarnation,
-                             step_timeout=args.step_timeout,
+                             step_timeout=args.step_timeout, settle=args.settle,
                              heartbeat_period=args.heartbeat_period, dead_after=args.dead_after)
     replica = TeamReplica(tree_from_spec(args.tree), args.robots, config.algo)
     return run_agent(TreeAgent(config, replica), settings_from_args(args))

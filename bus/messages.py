@@ -19,7 +19,8 @@ from typing import Any, ClassVar, Literal, TypeVar
 import numpy as np
 import numpy.typing as npt
 
-SCHEMA_VERSION = 2  # 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims
+# 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims; 3: TreeReport.gone/.dead
+SCHEMA_VERSION = 3
 
 Pose = tuple[int, int, int]
 SubCell = tuple[int, int]

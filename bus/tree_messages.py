@@ -21,7 +21,13 @@ from bus.messages import message
 class TreeReport:
     """Robot ``robot`` stands on ``node`` at ``step``. ``sender`` is the robot transmitting
     this copy: ``robot`` itself for its own report, another robot when relaying it (the radio
-    reaches only robots on the same or an adjacent node, so reports travel hop by hop)."""
+    reaches only robots on the same or an adjacent node, so reports travel hop by hop).
+
+    ``gone``: (robot, step) for every robot ``robot``'s team replica removed before ``step``
+    (dead; removed at that step's boundary; ascending); every report of one step must carry
+    the same, or the replicas have diverged.
+    ``dead``: the robots ``robot`` knew dead when it reported (ascending), passed on so that
+    knowledge of a death spreads with the reports (schema 3)."""
 
     KIND: ClassVar[str] = "tree_report"
     robot: int
@@ -29,6 +35,8 @@ class TreeReport:
     step: int
     node: int
     sender: int
+    gone: tuple[tuple[int, int], ...] = ()
+    dead: tuple[int, ...] = ()
 
 
 @message

@@ -3,6 +3,9 @@
 Starts an embedded router on a free 127.0.0.1 port, the radio relay (``mstc radio``) and one
 ``mstc tree-agent`` per robot, prints progress, and reports the coverage time and SF seen in
 the robots' reports beside the lockstep simulator's (``run_coverage``) for the same input.
+With ``--kill``, the lockstep run to equal is ``run_with_failures`` with every robot removed at
+the step the fleet removed it (a SIGKILL lands between steps at a moment the launcher does not
+choose exactly; the fleet's agents decide at which step boundary the death counts).
 
 Exit codes: 0 covered, connected at every step and equal to the lockstep run; 1 otherwise (a
 process failed, the run stalled, or the results differ); 2 usage or start-up error.
@@ -18,6 +21,7 @@ from bus.argtypes import positive, positive_int
 from deploy.cli import UsageError
 from deploy.fleet import default_run_dir, unique_mission, usage_errors_as_lines
 from deploy.tree_fleet import TreeFleet, TreeFleetOptions, TreeFleetOutcome
+from planner.treecover.failures import run_with_failures
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import tree_from_spec
 from planner.treecover.types import CoverageResult, Tree
@@ -39,9 +43,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lease-ms", type=positive_int, default=5000,
                         help="Zenoh lease of every process (default 5000: tolerant of a "
                              "CPU-starved machine)")
-    parser.add_argument("--kill", type=kill_order, metavar="ROBOT@STEP",
-                        help="SIGKILL robot ROBOT's agent once step STEP is complete (the "
-                             "team then stops: trail repair is not built)")
+    parser.add_argument("--kill", type=kill_order, metavar="ROBOT@STEP", action="append",
+                        default=[],
+                        help="SIGKILL robot ROBOT's agent once step STEP is complete; the "
+                             "survivors repair the trail and finish (repeatable)")
+    parser.add_argument("--settle", type=positive, default=1.0, metavar="SECONDS",
+                        help="how long agents wait for a dead robot's last report (default 1)")
     parser.add_argument("--json", action="store_true", help="print one JSON object at the end")
 
 
@@ -59,18 +66,26 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     tree = tree_from_spec(args.tree)
-    if args.kill is not None and args.kill[0] >= args.robots:
-        raise UsageError(f"--kill {args.kill[0]}@...: robots are 0..{args.robots - 1}")
+    victims = [robot for robot, _ in args.kill]
+    if any(robot >= args.robots for robot in victims):
+        raise UsageError(f"--kill {max(victims)}@...: robots are 0..{args.robots - 1}")
+    if len(set(victims)) != len(victims) or len(victims) >= args.robots:
+        raise UsageError("--kill: each robot at most once, and one robot must survive")
     lockstep = run_coverage(tree, args.robots, args.algo)  # also rejects infeasible inputs
     mission = unique_mission()
     options = TreeFleetOptions(
         tree=args.tree, robots=args.robots, algo=args.algo, mission=mission,
         run_dir=default_run_dir(mission) if args.run_dir is None else args.run_dir,
         endpoint=args.listen, lease_ms=args.lease_ms, step_timeout=args.step_timeout,
-        stall_timeout=args.stall_timeout, kill=args.kill)
+        stall_timeout=args.stall_timeout, kills=tuple(args.kill), settle=args.settle)
     say = (lambda _text: None) if args.json else (lambda text: print(text, flush=True))
     outcome = asyncio.run(TreeFleet(options, say).run())
-    summary = summarize(tree, lockstep, outcome)
+    deaths = outcome.observed.deaths
+    lockstep_cuts = 0
+    if deaths:
+        repaired = run_with_failures(tree, args.robots, args.algo, deaths)
+        lockstep, lockstep_cuts = repaired.result, repaired.cut_at_death
+    summary = summarize(tree, lockstep, outcome, lockstep_cuts)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -79,8 +94,10 @@ def _run(args: argparse.Namespace) -> int:
     return 0 if summary["verdict"] == "ok" else 1
 
 
-def summarize(tree: Tree, lockstep: CoverageResult,
-              outcome: TreeFleetOutcome) -> dict[str, object]:
+def summarize(tree: Tree, lockstep: CoverageResult, outcome: TreeFleetOutcome,
+              lockstep_cuts: int = 0) -> dict[str, object]:
+    """The run's figures beside the lockstep run's (with the same failures, if any), and a
+    verdict: "ok" or every problem found."""
     seen, radio = outcome.observed, outcome.radio
     time = seen.coverage_time
     problems = [] if outcome.ok else [outcome.message]
@@ -90,6 +107,10 @@ def summarize(tree: Tree, lockstep: CoverageResult,
         problems.append(f"visited {seen.visited} of {tree.n} nodes")
     if not seen.connected or seen.jumps:
         problems.append(f"connected at every step: {seen.connected}, jumps: {seen.jumps}")
+    if not lockstep.connected:
+        problems.append("the lockstep run with these failures was not connected at every step")
+    if seen.cut_at_death != lockstep_cuts:
+        problems.append(f"cut at {seen.cut_at_death} death steps, lockstep {lockstep_cuts}")
     return {
         "tree": tree.name, "nodes": tree.n, "height": tree.height,
         "algo": lockstep.algo.value, "robots": lockstep.robots,
@@ -97,6 +118,8 @@ def summarize(tree: Tree, lockstep: CoverageResult,
         "coverage_time": time, "lockstep_time": lockstep.time,
         "speedup": round(lockstep.single_time / time, 4) if time else None,
         "visited": seen.visited, "connected_every_step": seen.connected,
+        "deaths": {str(robot): step for robot, step in sorted(seen.deaths.items())},
+        "cut_at_death": seen.cut_at_death,
         "wall_seconds": round(outcome.wall_seconds, 2),
         "mission_seconds": None if outcome.mission_seconds is None else
         round(outcome.mission_seconds, 2),

@@ -45,7 +45,8 @@ class TreeFleetOptions:
     step_timeout: float = 10.0
     stall_timeout: float = 30.0
     dead_after: float = 5.0
-    kill: tuple[int, int] | None = None  # (robot, step): SIGKILL its agent at that step
+    settle: float = 1.0  # how long a dead robot's last report may still be on its way
+    kills: tuple[tuple[int, int], ...] = ()  # (robot, step): SIGKILL its agent at that step
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,7 @@ class TreeFleet:
         self.router: Child | None = None
         self.radio: Child | None = None
         self.agents: list[Child] = []
-        self.killed: str | None = None
+        self.killed: list[str] = []
         self.t0 = time.monotonic()
         self.first_report: float | None = None
         self.stopped_by: str | None = None  # the signal that asked us to stop
@@ -164,7 +165,7 @@ class TreeFleet:
             self.agents.append(self._spawn(f"agent-{robot}", "agent", mstc_argv(
                 "tree-agent", "--id", str(robot), *common, "--algo", o.algo,
                 "--step-timeout", str(o.step_timeout), "--dead-after", str(o.dead_after),
-                *self._connection()), robot))
+                "--settle", str(o.settle), *self._connection()), robot))
         self.say(f"fleet up: mission {o.mission} on {self.endpoint}, radio and {o.robots} "
                  f"agents ({o.algo}), run dir {self.run_dir.path}")
 
@@ -181,10 +182,8 @@ class TreeFleet:
             if failure is not None:
                 return False, failure
             if all(a.returncode is not None for a in self.agents):
-                if self.killed is not None:
-                    return False, self._after_kill()
                 await self._settle()
-                return True, "every agent finished"
+                return True, "every agent finished" + "".join(f"; {k}" for k in self.killed)
             if seen.complete != last_step:
                 last_step, last_change = seen.complete, now
             elif now - last_change > o.stall_timeout:
@@ -198,39 +197,35 @@ class TreeFleet:
             await asyncio.sleep(TICK_S)
 
     def _failed_child(self) -> str | None:
-        """Why the run failed, if the router or radio ended or an agent failed (after a kill
-        the survivors are expected to give up: they may all end)."""
+        """Why the run failed, if the router or radio ended or an agent we did not kill
+        failed (the survivors of a kill repair the trail and carry on)."""
         for child in (self.router, self.radio, *self.agents):
             code = None if child is None else child.returncode
             if child is None or code is None:
                 continue
-            if child.role != "agent" or (code != 0 and self.killed is None):
+            if child.role != "agent" or (code != 0 and not child.expected_exit):
                 return (f"{child.name} exited with code {code}; last lines of {child.log}:\n"
                         f"{child.tail(6)}")
         return None
 
     def _maybe_kill(self) -> None:
-        kill = self.options.kill
-        if kill is None or self.killed is not None or self.observer.complete < kill[1]:
-            return
-        victim = self.agents[kill[0]]
-        victim.expected_exit = True
-        victim.signal(signal.SIGKILL)
-        self.killed = f"robot {kill[0]} killed (SIGKILL) after step {self.observer.complete}"
-        self.say(f"[{time.monotonic() - self.t0:6.1f}s] {self.killed}")
-
-    def _after_kill(self) -> str:
-        codes = {a.robot: a.returncode for a in self.agents if not a.expected_exit}
-        reasons = [line for a in self.agents if not a.expected_exit
-                   for line in a.tail(3).splitlines() if "error" in line][:1]
-        return (f"{self.killed}; the other agents ended with exit codes {codes}"
-                + (f"; e.g. {reasons[0]}" if reasons else ""))
+        for robot, step in self.options.kills:
+            victim = self.agents[robot]
+            if victim.expected_exit or self.observer.complete < step:
+                continue
+            victim.expected_exit = True
+            victim.signal(signal.SIGKILL)
+            self.killed.append(f"robot {robot} killed (SIGKILL) after step "
+                               f"{self.observer.complete}")
+            self.say(f"[{time.monotonic() - self.t0:6.1f}s] {self.killed[-1]}")
 
     async def _settle(self) -> None:
         """Let the last reports, already sent by agents that have exited, reach us."""
         deadline = time.monotonic() + SETTLE_S
+        killed = [a.robot for a in self.agents if a.expected_exit and a.robot is not None]
         while self.observer.coverage_time is None and time.monotonic() < deadline:
             await asyncio.sleep(TICK_S)
+            self.observer.finish(killed)
 
     def shutdown(self) -> None:
         """Stop the agents, then the radio, then the router."""

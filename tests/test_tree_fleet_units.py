@@ -1,5 +1,6 @@
 """Tree coverage in the fleet, the pure parts: wire messages and keys, the radio's range rule,
-the team replica every agent runs, and the launcher's observer."""
+the team replica every agent runs, the step barrier of trail repair, and the launcher's
+observer."""
 
 from __future__ import annotations
 
@@ -11,11 +12,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_bus_codec import st_message
 
+from agent.tree_barrier import StepVerdict, judge_step, reachable_nodes
 from bus import codec, keys
 from bus.codec import decode, decode_any, encode
 from bus.errors import DecodeError
 from bus.tree_messages import RadioStats, TreeReport
 from deploy.tree_observer import TeamObserver, connected
+from planner.treecover.failures import run_with_failures
 from planner.treecover.sim import run_coverage
 from planner.treecover.team import TeamReplica, assign
 from planner.treecover.trees import general_tree, perfect_tree
@@ -182,3 +185,83 @@ def test_observer_flags_disconnection_and_jumps_and_ignores_relays() -> None:
     assert observer.run().jumps == 1
     assert connected(tree.parent.tolist(), {0, 1, 4})
     assert not connected(tree.parent.tolist(), {0, 4})
+
+
+def test_tree_report_sets_must_be_int_arrays() -> None:
+    raw = msgpack.unpackb(encode(TreeReport(1, 1, 4, 7, 2, ((3, 2),), (3, 5))))
+    assert raw["gone"] == [[3, 2]] and raw["dead"] == [3, 5]
+    raw["gone"] = [3]
+    with pytest.raises(DecodeError, match="gone"):
+        decode(msgpack.packb(raw, use_bin_type=True), TreeReport)
+
+
+# --- trail repair in the fleet: the step barrier, the replica, the observer ----------------
+
+
+def test_a_step_waits_for_every_live_robot_in_hearing() -> None:
+    positions, alive = [0, 1, 3, 2], [True] * 4  # robot 2 on node 3, below robot 1
+    ready = judge_step(PARENT, positions, alive, 0, {0, 1, 2, 3}, {}, 0.0, 1.0)
+    assert ready == StepVerdict(True, (), (), None)
+    waiting = judge_step(PARENT, positions, alive, 0, {0, 1, 3}, {}, 0.0, 1.0)
+    assert not waiting.ready and waiting.waiting_for == (2,) and waiting.wake_in is None
+
+
+def test_a_dead_robot_without_a_report_is_absent_once_its_death_settles() -> None:
+    positions, alive = [0, 1, 3, 2], [True] * 4
+    early = judge_step(PARENT, positions, alive, 0, {0, 1, 3}, {2: 10.0}, 10.25, 1.0)
+    assert not early.ready and early.waiting_for == (2,) and early.wake_in == 0.75
+    late = judge_step(PARENT, positions, alive, 0, {0, 1, 3}, {2: 10.0}, 11.0, 1.0)
+    assert late.ready and late.absent == (2,)
+    removed = judge_step(PARENT, positions, [True, True, False, True], 0, {0, 1, 3}, {2: 1.0},
+                         1.5, 1.0)  # removed at an earlier step: no longer expected
+    assert removed.ready and removed.absent == ()
+
+
+def test_robots_cut_off_by_a_dead_robot_that_reported_are_not_waited_for() -> None:
+    # robot 1 reported this step and then died: it relays nothing, so robot 2 below it cannot
+    # be heard; robot 1 stays in the team until the step its report is missing
+    positions, alive = [0, 1, 3, 2], [True] * 4
+    verdict = judge_step(PARENT, positions, alive, 0, {0, 1, 3}, {1: 0.0}, 0.1, 1.0)
+    assert verdict.ready and verdict.absent == () and verdict.waiting_for == ()
+    assert reachable_nodes(PARENT, [0, 1, 3, 2], 3) == {0, 1, 2, 3}
+    assert reachable_nodes(PARENT, [0, 3, 2], 3) == {3}
+    assert reachable_nodes(PARENT, [0, 2], 4) == set()
+
+
+@pytest.mark.parametrize("algo", ["cocta", "ncocta"])
+def test_replica_with_a_loss_walks_the_lockstep_run_and_the_observer_sees_it(algo: str) -> None:
+    tree, robots, victim, lost_at = perfect_tree(3, 3), 7, 4, 9
+    lockstep = run_with_failures(tree, robots, algo, {victim: lost_at})
+    replica = TeamReplica(tree, robots, algo)
+    observer = TeamObserver(tree, robots)
+    while True:
+        gone = tuple(sorted(replica.removed.items()))
+        for robot, node in enumerate(replica.positions):
+            if replica.alive[robot] and not (robot == victim and replica.step == lost_at):
+                observer.on_transmission(TreeReport(robot, 1, replica.step, node, robot, gone))
+        if replica.step == lost_at:
+            replica.remove([victim])
+        if replica.done():
+            break
+        replica.advance()
+    assert replica.step == lockstep.result.time
+    observer.finish([victim])
+    seen = observer.run()
+    assert seen.deaths == {victim: lost_at}
+    assert seen.coverage_time == lockstep.result.time and seen.visited == tree.n
+    assert seen.connected and seen.jumps == 0
+    assert seen.cut_at_death == lockstep.cut_at_death
+
+
+def test_observer_closes_a_death_step_when_the_next_step_lists_the_robot_gone() -> None:
+    tree = perfect_tree(2, 2)
+    observer = TeamObserver(tree, 3)
+    for robot in range(3):
+        observer.on_transmission(TreeReport(robot, 1, 0, 0, robot))
+    observer.on_transmission(TreeReport(0, 1, 1, 0, 0))
+    observer.on_transmission(TreeReport(1, 1, 1, 2, 1))  # robot 2 never reports step 1
+    assert observer.complete == 0
+    observer.on_transmission(TreeReport(0, 1, 2, 0, 0, ((2, 1),)))
+    assert observer.complete == 1 and observer.deaths == {2: 1}
+    observer.on_transmission(TreeReport(1, 1, 2, 0, 1, ((2, 1),)))
+    assert observer.complete == 2 and observer.run().connected

@@ -84,6 +84,40 @@ class CoverageState:
             if self.visit_time[v] < 0:
                 self._visit(v)
 
+    def remove(self, v: int) -> None:
+        """One robot standing on ``v`` is gone (it died): the counts on v's path to the root
+        and the team size drop by one. Connectivity is the caller's to restore."""
+        if self.at.get(v, 0) < 1:
+            raise ValueError(f"no robot on node {v} to remove")
+        if self.robots <= 1:
+            raise ValueError("cannot remove the last robot")
+        self._inhabited = None
+        self.robots -= 1
+        if self.at[v] == 1:
+            del self.at[v]
+        else:
+            self.at[v] -= 1
+        while v >= 0:
+            self.sub[v] -= 1
+            v = self.parent[v]
+
+    def unvisit(self, v: int) -> None:
+        """Node ``v`` was not visited after all (the robot meant to visit it died on the way):
+        the exact inverse of the visit's bookkeeping."""
+        if self.visit_time[v] < 0:
+            raise ValueError(f"node {v} was not visited")
+        self.visit_time[v] = -1
+        self.remaining += 1
+        self._inhabited = None
+        parent, unexplored, unfinished = self.parent, self.unexplored, self.unfinished_nodes
+        opened = 0  # the path nodes this reopens: a prefix from v up, as a visit closes them
+        while v >= 0:
+            if unexplored[v] == 0:
+                opened += 1
+            unexplored[v] += 1
+            unfinished[v] += opened
+            v = parent[v]
+
     def connected(self) -> bool:
         """Lemma 4.1: occupied nodes induce one connected subtree (exactly one has its parent
         unoccupied, or is the root)."""
