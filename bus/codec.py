@@ -2,8 +2,9 @@
 
 A payload is one msgpack map: ``{"_kind": KIND, "_v": SCHEMA_VERSION, <field>: <value>...}``
 (records nested inside are plain maps of their fields; tuples are arrays). Decoding is strict
-because robots act on what they hear: wrong kind, wrong version, missing or extra fields,
-wrong types and oversized payloads all raise DecodeError, and the caller counts the drop.
+because robots act on what they hear: wrong kind, a version newer than ours or older than the
+kind's last change (``bus.messages.version_problem``), missing or extra fields, wrong types and
+oversized payloads all raise DecodeError, and the caller counts the drop.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from typing import Any, Literal, TypeVar, Union, get_args, get_origin
 import msgpack
 
 from bus.errors import DecodeError, EncodeError
-from bus.messages import MESSAGE_TYPES, RECORD_TYPES, SCHEMA_VERSION
+from bus.messages import MESSAGE_TYPES, RECORD_TYPES, SCHEMA_VERSION, version_problem
 
 DEFAULT_MAX_PAYLOAD = 64 * 1024
 KIND_FIELD = "_kind"
@@ -218,12 +219,15 @@ def decode(payload: bytes, expected: Expected[M], *,
     if not isinstance(raw, dict):
         raise DecodeError(f"expected a msgpack map, got {type(raw).__name__}")
     kind, version = raw.get(KIND_FIELD), raw.get(VERSION_FIELD)
-    if type(version) is not int or version != SCHEMA_VERSION:
-        raise DecodeError(f"schema version {version!r}, expected {SCHEMA_VERSION}")
+    problem = version_problem(kind if isinstance(kind, str) else "", version)
+    if problem is not None and (type(version) is not int or version > SCHEMA_VERSION):
+        raise DecodeError(problem)  # a newer or broken generation, whatever the kind
     by_kind = {cls.KIND: cls for cls in _expected_types(expected)}
     cls = by_kind.get(kind) if isinstance(kind, str) else None
     if cls is None:
         raise DecodeError(f"kind {kind!r}, expected one of {sorted(by_kind)}")
+    if problem is not None:
+        raise DecodeError(problem)
     body = {k: v for k, v in raw.items() if k not in (KIND_FIELD, VERSION_FIELD)}
     result: M = cls(**_fields(cls, body, cls.KIND, decoding=True))
     return result

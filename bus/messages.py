@@ -19,6 +19,10 @@ from typing import Any, ClassVar, Literal, TypeVar
 import numpy as np
 import numpy.typing as npt
 
+# The wire generation a process speaks. A kind whose fields change gets ``SINCE`` = the new
+# generation; payloads of older generations stay readable for every kind that has not changed
+# since (docs/protocol.md, "Versioning rule"), so one kind's change does not make old
+# recordings of the others unreadable.
 # 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims; 3: TreeReport.gone/.dead
 SCHEMA_VERSION = 3
 
@@ -29,17 +33,34 @@ SummaryValue = int | float | str
 M = TypeVar("M")
 MESSAGE_TYPES: dict[str, type[Any]] = {}
 RECORD_TYPES: set[type[Any]] = set()
+KIND_SINCE: dict[str, int] = {}  # kind -> the generation its fields last changed in
 
 
 def message(cls: type[M]) -> type[M]:
-    """Register a message dataclass under its ``KIND`` tag (unique)."""
+    """Register a message dataclass under its ``KIND`` tag (unique) and its ``SINCE``
+    generation (default 1: unchanged since the first)."""
     kind = cls.__dict__.get("KIND")
     if not isinstance(kind, str) or not kind:
         raise TypeError(f"{cls.__name__} needs a non-empty KIND class variable")
     if kind in MESSAGE_TYPES:
         raise TypeError(f"message kind {kind!r} registered twice")
+    since = cls.__dict__.get("SINCE", 1)
+    if type(since) is not int or not 1 <= since <= SCHEMA_VERSION:
+        raise TypeError(f"{cls.__name__}.SINCE must be a generation 1..{SCHEMA_VERSION}")
     MESSAGE_TYPES[kind] = cls
+    KIND_SINCE[kind] = since
     return cls
+
+
+def version_problem(kind: str, version: object) -> str | None:
+    """Why a payload of ``kind`` at wire generation ``version`` cannot be read here, or None."""
+    if type(version) is not int or not 1 <= version <= SCHEMA_VERSION:
+        return f"schema version {version!r}, expected 1..{SCHEMA_VERSION}"
+    since = KIND_SINCE.get(kind, 1)
+    if version < since:
+        return (f"{kind} of schema version {version}: its fields changed in version {since} "
+                f"(this mstc speaks {SCHEMA_VERSION})")
+    return None
 
 
 def record(cls: type[M]) -> type[M]:
@@ -252,6 +273,7 @@ class WorldState:
     the ``right`` then the ``down`` array over cells (planner.types.SpanningTree's layout)."""
 
     KIND: ClassVar[str] = "world"
+    SINCE: ClassVar[int] = 2
     map_name: str
     shape: tuple[int, int]
     free: bytes
@@ -343,6 +365,7 @@ class AgentState:
     offline algorithms the plan's tree kind and seed (so a monitor can rebuild the tree)."""
 
     KIND: ClassVar[str] = "agent_state"
+    SINCE: ClassVar[int] = 2
     robot: int
     incarnation: int
     state: str

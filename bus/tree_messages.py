@@ -30,6 +30,7 @@ class TreeReport:
     knowledge of a death spreads with the reports (schema 3)."""
 
     KIND: ClassVar[str] = "tree_report"
+    SINCE: ClassVar[int] = 3
     robot: int
     incarnation: int
     step: int
@@ -51,6 +52,7 @@ class RadioStats:
     ``spoofed`` copies whose ``sender`` was not the outbox's robot (dropped)."""
 
     KIND: ClassVar[str] = "radio_stats"
+    SINCE: ClassVar[int] = 2
     transmissions: int
     deliveries: int
     refused: int

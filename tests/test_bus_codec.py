@@ -109,6 +109,7 @@ def pack(raw: Any) -> bytes:
     (lambda r: r.update({codec.KIND_FIELD: "progress"}), "kind"),
     (lambda r: r.pop(codec.KIND_FIELD), "kind"),
     (lambda r: r.update({codec.VERSION_FIELD: SCHEMA_VERSION + 1}), "version"),
+    (lambda r: r.update({codec.VERSION_FIELD: 0}), "version"),
     (lambda r: r.update({codec.VERSION_FIELD: "1"}), "version"),
     (lambda r: r.pop(codec.VERSION_FIELD), "version"),
     (lambda r: r.pop("seq"), "missing"),
@@ -126,6 +127,21 @@ def test_strict_decoding_rejects(mutate: Any, match: str) -> None:
     mutate(raw)
     with pytest.raises(DecodeError, match=match):
         decode(pack(raw), Heartbeat)
+
+
+def test_a_kind_is_read_from_every_generation_since_its_last_change() -> None:
+    """Progress is unchanged since generation 1: payloads of generations 1..now decode; a
+    kind registered with SINCE = g refuses older payloads and says why."""
+    sent = Progress(robot=1, incarnation=0, seq=3, cell=(2, 4), sim_time=1.5)
+    raw = msgpack.unpackb(encode(sent), raw=False)
+    for version in range(1, SCHEMA_VERSION + 1):
+        assert decode(pack(dict(raw, _v=version)), Progress) == sent
+    assert MESSAGE_TYPES["agent_state"].SINCE == 2
+    state = AgentState(robot=0, incarnation=0, state="done", moves=1, n=0, covered=b"",
+                       dead=(), took_over=())
+    old = dict(msgpack.unpackb(encode(state), raw=False), _v=1)
+    with pytest.raises(DecodeError, match="changed in version 2"):
+        decode(pack(old), AgentState)
 
 
 def test_literal_and_nested_records_are_checked() -> None:

@@ -134,3 +134,29 @@ def test_parse_line_rejects_bad_envelopes() -> None:
                  '{"t": 1, "key": "k", "kind": "token", "msg": {"robot": 1}}'):
         with pytest.raises((ValueError, DecodeError)):
             parse_line(text)
+
+
+def test_older_recordings_keep_every_kind_that_has_not_changed_since(tmp_path: Path) -> None:
+    """A recording of generation 1: lines of kinds unchanged since are read; an AgentState line
+    (its fields changed in generation 2) is a line error naming the change, not a lost file."""
+    records = run_mission(open_room(), two_robot_walks()).records + samples()
+    path = tmp_path / "old.jsonl"
+    with RecordWriter(path, Header(M, 1_700_000_000.0, "test", 1)) as writer:
+        for record in records:
+            writer.write(record)
+    back = read_recording(path)
+    assert back.header.wire_version == 1
+    changed = [r for r in records if getattr(r.msg, "KIND", "") in ("agent_state", "world")]
+    assert changed, "the samples must hold kinds changed in generation 2"
+    assert len(back.errors) == len(changed)
+    assert all("changed in version 2" in e.reason for e in back.errors)
+    assert len(back.records) == len(records) - len(changed)
+
+
+def test_payload_generations_newer_than_ours_or_older_than_the_kind_are_refused() -> None:
+    agent = next(r.msg for r in samples() if isinstance(r.msg, AgentState))
+    raw = msgpack.unpackb(encode(agent), raw=False)
+    for version, needle in ((1, "changed in version 2"), (SCHEMA_VERSION + 1, "expected 1..")):
+        with pytest.raises(DecodeError, match=needle):
+            decode_payload(msgpack.packb(dict(raw, _v=version), use_bin_type=True))
+    assert decode_payload(msgpack.packb(dict(raw, _v=2), use_bin_type=True)) == agent

@@ -22,7 +22,7 @@ import msgpack
 
 from bus.codec import KIND_FIELD, VERSION_FIELD, decode, decode_any
 from bus.errors import DecodeError
-from bus.messages import MESSAGE_TYPES, SCHEMA_VERSION
+from bus.messages import MESSAGE_TYPES, SCHEMA_VERSION, version_problem
 from deploy.cli import UsageError
 from deploy.monitor.types import Header, LineError, Opaque, Record, Recording, TokenChange
 
@@ -48,8 +48,8 @@ def decode_payload(payload: bytes, max_size: int = _MAX_PAYLOAD) -> Any:
     except DecodeError:
         raw = _unpack(payload)
         kind = raw.get(KIND_FIELD) if isinstance(raw, dict) else None
-        if not isinstance(raw, dict) or raw.get(VERSION_FIELD) != SCHEMA_VERSION \
-                or not isinstance(kind, str) or kind in MESSAGE_TYPES:
+        if not isinstance(raw, dict) or not isinstance(kind, str) or kind in MESSAGE_TYPES \
+                or version_problem(kind, raw.get(VERSION_FIELD)) is not None:
             raise
         fields = {str(k): v for k, v in raw.items() if k not in (KIND_FIELD, VERSION_FIELD)}
         return Opaque(kind, fields)
@@ -103,7 +103,7 @@ def record_line(record: Record) -> str:
                       separators=(",", ":"), allow_nan=False)
 
 
-def _message(kind: str, fields: dict[str, Any]) -> Any:
+def _message(kind: str, fields: dict[str, Any], wire_version: int) -> Any:
     if kind == TokenChange.KIND:
         robot, inc, present = (fields.get(n) for n in ("robot", "incarnation", "present"))
         if type(robot) is not int or type(inc) is not int or type(present) is not bool \
@@ -114,12 +114,13 @@ def _message(kind: str, fields: dict[str, Any]) -> Any:
     cls = MESSAGE_TYPES.get(kind)
     if cls is None:
         return Opaque(kind, fields)
-    wire = {KIND_FIELD: kind, VERSION_FIELD: SCHEMA_VERSION, **fields}
+    wire = {KIND_FIELD: kind, VERSION_FIELD: wire_version, **fields}
     return decode(msgpack.packb(wire, use_bin_type=True), cls, max_size=_MAX_PAYLOAD)
 
 
-def parse_line(text: str) -> Record:
-    """A record from one JSON line; ValueError (or DecodeError) saying what is wrong."""
+def parse_line(text: str, wire_version: int = SCHEMA_VERSION) -> Record:
+    """A record from one JSON line of a recording of wire generation ``wire_version``;
+    ValueError (or DecodeError, e.g. a kind whose fields changed since) saying what is wrong."""
     data = json.loads(text)
     if not isinstance(data, dict):
         raise ValueError("not a JSON object")
@@ -133,7 +134,7 @@ def parse_line(text: str) -> Record:
         raise ValueError(f"'via' must be one of {VIAS}, got {via!r}")
     if not isinstance(msg, dict):
         raise ValueError("'msg' must be a JSON object")
-    return Record(float(t), key, _message(kind, from_json(msg)), via)
+    return Record(float(t), key, _message(kind, from_json(msg), wire_version), via)
 
 
 # --- files -------------------------------------------------------------------------------
@@ -156,9 +157,9 @@ def parse_header(text: str, path: Path) -> Header:
     if not isinstance(version, int) or version > VERSION:
         raise RecordingError(f"{path} has recording schema version {version!r}; this mstc "
                              f"reads version {VERSION} and older")
-    if wire != SCHEMA_VERSION:
+    if type(wire) is not int or not 1 <= wire <= SCHEMA_VERSION:
         raise RecordingError(f"{path} holds wire schema version {wire!r} messages; this "
-                             f"mstc decodes version {SCHEMA_VERSION}")
+                             f"mstc decodes versions 1 to {SCHEMA_VERSION}")
     started = data.get("started")
     return Header(mission=str(data.get("mission", "")),
                   started=float(started) if isinstance(started, (int, float)) else 0.0,
@@ -177,7 +178,7 @@ def read_recording(path: Path) -> Recording:
                 if not text.strip():
                     continue
                 try:
-                    records.append(parse_line(text))
+                    records.append(parse_line(text, header.wire_version))
                 except (ValueError, DecodeError, TypeError) as error:
                     errors.append(LineError(number, str(error)))
     except OSError as error:
