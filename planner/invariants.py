@@ -11,10 +11,8 @@ from collections import Counter
 from collections.abc import Iterable, Sequence
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
-from planner.grid import WorkArea, cell_of, expand
+from planner.grid import WorkArea, cell_of, expand, label_linked
 from planner.types import BoolArray, Cycle, Plan, SpanningTree, SubCell
 
 _SHOWN = 5  # how many offending items a message lists
@@ -46,14 +44,8 @@ def check_tree(tree: SpanningTree) -> None:
     if tree.edge_count != n - 1:
         raise InvariantViolation(
             f"{tree.edge_count} edges over {n} cells: a spanning tree has exactly {n - 1}")
-    h, w = cells.shape
-    ends = np.array(tree.edges(), dtype=np.int64).reshape(-1, 2, 2)
-    flat = ends[:, :, 0] * w + ends[:, :, 1]
-    graph = coo_matrix((np.ones(len(flat)), (flat[:, 0], flat[:, 1])), shape=(h * w, h * w))
-    _, labels = connected_components(graph, directed=False)
-    component = labels[cells.ravel()]
-    if np.unique(component).size != 1:
-        parts = np.unique(component).size
+    _, parts = label_linked(cells, tree.right, tree.down)
+    if parts != 1:
         raise InvariantViolation(f"the tree's edges leave its {n} cells in {parts} parts")
     # n - 1 edges joining n cells into one part cannot contain a cycle.
 

@@ -12,8 +12,6 @@ from collections import deque
 from collections.abc import Iterable, Sequence
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import minimum_spanning_tree
 
 from planner.errors import EmptyMapError, TreeError
 from planner.grid import label_components
@@ -233,6 +231,12 @@ def _wilson(neighbours: list[list[int]], root: int, seed: int) -> list[int]:
 
 def _kruskal(cells: BoolArray, seed: int | None) -> SpanningTree:
     """Minimum spanning tree with horizontal edges cheaper than vertical ones (fewer turns)."""
+    # Imported here, not at the top: scipy.sparse.csgraph is 31 MB (24 MB more per agent
+    # process, whose budget is 80 MB), and of the offline agents' tree kinds only this one
+    # needs it.
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import minimum_spanning_tree
+
     h, w = cells.shape
     idx = np.arange(h * w).reshape(h, w)
     horizontal = cells[:, :-1] & cells[:, 1:]

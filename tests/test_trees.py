@@ -264,6 +264,24 @@ def test_tree_from_edges_rejects_repeats() -> None:
         tree_from_edges(cells, [((0, 0), (0, 1)), ((0, 1), (0, 0))])
 
 
+@settings(max_examples=100, deadline=None)
+@given(cells=connected_cells(max_side=6), seed=st.integers(0, 2**32 - 1))
+def test_check_tree_agrees_with_brute_force_on_random_edge_sets(cells: np.ndarray,
+                                                                 seed: int) -> None:
+    # n - 1 grid edges drawn at random: a spanning tree or not, check_tree must say the same
+    # as the flood-fill oracle (this exercises its component count, planner.grid.label_linked).
+    edges = grid_edges(cells)
+    n = int(cells.sum())
+    rng = np.random.default_rng(seed)
+    chosen = [edges[i] for i in rng.permutation(len(edges))[: n - 1]] if n > 1 else []
+    tree = tree_from_edges(cells, chosen)
+    if is_spanning_tree(cells, chosen):
+        check_tree(tree)
+    else:
+        with pytest.raises(InvariantViolation, match="parts"):
+            check_tree(tree)
+
+
 def test_check_tree_catches_cycles_gaps_and_stray_edges() -> None:
     cells = np.ones((2, 2), dtype=bool)
     ring = [((0, 0), (0, 1)), ((0, 1), (1, 1)), ((1, 0), (1, 1)), ((0, 0), (1, 0))]
