@@ -22,6 +22,7 @@ The caller keeps the result only if it beats the partitions grown from the start
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -92,13 +93,32 @@ def spread_seeds(state: PartitionState, starts: Sequence[int], spacing: int) -> 
             seeds.append(u)
     # a seed inside a corridor would box a neighbour in, one on a start would share its cell
     avoid = articulation_points(cells, state.neighbours) | set(starts)
+    room = cell_distances(state, seeds, cells)
     while len(seeds) < len(starts):
-        room = cell_distances(state, seeds, cells)
         candidates = [u for u in cells if room.get(u, UNREACHABLE) > 0]
         if not candidates:
             break  # fewer cells than robots
         seeds.append(max(candidates, key=lambda u: (u not in avoid, room.get(u, UNREACHABLE), -u)))
+        _lower_distances(state, room, seeds[-1], cells)
     return seeds
+
+
+def _lower_distances(state: PartitionState, dist: dict[int, int], source: int,
+                     cells: set[int]) -> None:
+    """Update nearest-source distances (cell_distances) in place for one more source.
+
+    Breadth-first from the new source through the cells it brings closer only: a cell
+    that gets closer is reached through a neighbour that got closer too, so this gives
+    what a fresh search from all sources gives, at a fraction of the cost.
+    """
+    dist[source] = 0
+    queue = deque([source])
+    while queue:
+        u = queue.popleft()
+        for v in state.neighbours[u]:
+            if v in cells and dist[u] + 1 < dist.get(v, UNREACHABLE):
+                dist[v] = dist[u] + 1
+                queue.append(v)
 
 
 def start_distances(area: WorkArea) -> IntArray:
@@ -138,9 +158,12 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: IntArray) -> Rout
         for sub in _region_subs(state, robot):
             inside[sub[0] * w + sub[1]] = robot
     travel = np.full((state.k, state.k), UNREACHABLE, dtype=np.int64)
-    for region, entry in enumerate(entries):
-        if entry:
-            travel[:, region] = walks[:, entry].min(axis=1)
+    # nearest entry sub-cell of every region with one, in one gather and one reduction
+    regions = [region for region, entry in enumerate(entries) if entry]
+    if regions:
+        bounds = np.cumsum([0] + [len(entries[region]) for region in regions[:-1]])
+        gathered = walks[:, [i for region in regions for i in entries[region]]]
+        travel[:, regions] = np.minimum.reduceat(gathered, bounds, axis=1)
     for robot, (r, c) in enumerate(area.starts):
         if r * w + c in inside:
             travel[robot, inside[r * w + c]] = 0

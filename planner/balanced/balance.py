@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import itertools
 from collections import deque
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -32,8 +32,7 @@ RESHAPES_PER_ROBOT = 2  # bound the costliest move (see reshape.py): how often,
 RESHAPE_PAIRS = 8  # and how many pairs each time
 
 
-@dataclass(frozen=True)
-class _Move:
+class _Move(NamedTuple):  # a tuple: built thousands of times per plan
     cell: int
     keep: int  # whole cell of the donor that anchors the donor's half (split only)
     anchor: int  # whole cell of the receiver that anchors its half (split only)
@@ -90,25 +89,46 @@ def _moves(state: PartitionState, giver: int, taker: int | None, unit: int) -> l
     whole = state.whole[giver]
     if len(whole) < 2:
         return []
-    _label, _w = state.label, state.width
+    if not _exact(state, giver):
+        return _moves_of_large(state, giver, taker, unit)
+    label, neighbours, pins = state.label, state.neighbours, state.pins
+    out: list[_Move] = []
+    for u in whole:
+        if u in pins or (taker is not None and taker not in [label[v] for v in neighbours[u]]):
+            continue
+        found = _moves_of(state, giver, taker, unit, u)
+        if found and not state.is_cut(giver, u):  # only cells with a move need the test
+            out.extend(found)
+    return out
+
+
+def _exact(state: PartitionState, giver: int) -> bool:
+    """Whether moves out of ``giver`` skip exactly its cut cells (else see _moves_of_large)."""
+    return state.has_cut_cells(giver) or len(state.whole[giver]) <= LOCAL_TEST_SIZE
+
+
+def _moves_of_large(state: PartitionState, giver: int, taker: int | None,
+                    unit: int) -> list[_Move]:
+    """_moves for a large region that changed since its cut cells were last computed.
+
+    Exact cut cells cost a pass over the region, so the constant-time local test decides
+    instead, and only if it clears no cell with a move are the exact cells paid for (a cell
+    on a loop may be removable). Computing them caches them, which makes the region exact
+    (_exact) until it changes again.
+    """
     out: list[_Move] = []
     unsure: list[int] = []
-    # Exact cut cells cost a pass over the region; for a large region that changed since
-    # they were last computed, the constant-time local test decides most cells instead.
-    cut = state.cut_cells(giver) if state.has_cut_cells(giver) or len(whole) <= LOCAL_TEST_SIZE \
-        else None
-    for u in whole:
-        if state.pinned(u) or (cut is not None and u in cut):
+    for u in state.whole[giver]:
+        if state.pinned(u):
             continue
         found = _moves_of(state, giver, taker, unit, u)
         if not found:
             continue  # an inner cell: no removability test needed
-        if cut is None and not state.locally_removable(giver, u):
+        if not state.locally_removable(giver, u):
             unsure.append(u)
             continue
         out.extend(found)
     if not out and unsure:
-        # Only now pay for the exact articulation cells (a cell on a loop may be removable).
         cut = state.cut_cells(giver)
         for u in unsure:
             if u not in cut:
@@ -138,6 +158,8 @@ def _find_chain(state: PartitionState, donor: int, unit: int,
                 blocked: set[tuple[int, int]]) -> list[int] | None:
     """Shortest chain of regions from ``donor`` to one that can take ``unit`` and gain."""
     limit = state.load[donor] - unit - 1
+    if min(state.load) > limit:
+        return None  # no region could take it: spare the search its region scans
     parent = {donor: donor}
     queue = deque([donor])
     while queue:
@@ -164,9 +186,50 @@ def _takers(state: PartitionState, giver: int, unit: int) -> list[int]:
     hit = state.takers.get((giver, unit))
     if hit is not None and hit[0] == state.region_version[giver]:
         return hit[1]
-    found = sorted({state.label[m.anchor] for m in _moves(state, giver, None, unit)})
+    found = _taker_scan(state, giver, unit)
     state.takers[(giver, unit)] = (state.region_version[giver], found)
     return found
+
+
+def _taker_scan(state: PartitionState, giver: int, unit: int) -> list[int]:
+    """The owners of the anchors of _moves(state, giver, None, unit), sorted.
+
+    Without building the moves, and a cell that would add no new taker needs no cut test
+    (PartitionState.is_cut): this runs thousands of times per plan.
+    """
+    whole = state.whole[giver]
+    if len(whole) < 2 or not _exact(state, giver):
+        return sorted({state.label[m.anchor] for m in _moves(state, giver, None, unit)})
+    label, neighbours, pins = state.label, state.neighbours, state.pins
+    found: set[int] = set()
+    for u in whole:
+        if u in pins:
+            continue
+        if unit == WHOLE:
+            fresh = [y for v in neighbours[u]
+                     if (y := label[v]) >= 0 and y != giver and y not in found]
+        else:
+            fresh = [y for y in _takers_of(state, giver, unit, u) if y not in found]
+        if fresh and not state.is_cut(giver, u):
+            found.update(fresh)
+    return sorted(found)
+
+
+def _takers_of(state: PartitionState, giver: int, unit: int, u: int) -> set[int]:
+    """The regions of the anchors of _moves_of(state, giver, None, unit, u)."""
+    label, w = state.label, state.width
+    out: set[int] = set()
+    for v in state.neighbours[u]:
+        y = label[v]
+        if y < 0 or y == giver or y in out:
+            continue
+        if unit == SPLIT:
+            keep = 2 * u - v
+            same_line = keep // w == u // w or keep % w == u % w
+            if not (0 <= keep < len(label) and same_line and label[keep] == giver):
+                continue
+        out.add(y)
+    return out
 
 
 def _execute(state: PartitionState, chain: list[int], unit: int) -> tuple[int, int] | None:
@@ -216,16 +279,16 @@ def _relieve(state: PartitionState) -> bool:
     loads, so the balancing loop still terminates.
     """
     best: tuple[int, int, int, list[int]] | None = None
-    offers = _offers(state)
+    offers = _Offers(state)
     low = min(state.load)
-    for giver in sorted(offers, key=lambda r: (-state.load[r], r)):
+    for giver in sorted(offers.givers, key=lambda r: (-state.load[r], r)):
         spread = state.load[giver] - low
         if best is not None and spread * spread <= 4 * best[0]:
             break  # gain = amount * gap <= (spread / 2) ** 2, and givers come largest first
         if len(state.whole[giver]) < 2:
             continue
         cut = state.cut_cells(giver)
-        for u, takers in sorted(offers[giver].items()):
+        for u, takers in sorted(offers.of(giver).items()):
             if state.pinned(u):
                 continue
             piece = _piece(state, giver, u) if u in cut else [u]
@@ -246,23 +309,33 @@ def _relieve(state: PartitionState) -> bool:
     return True
 
 
-def _offers(state: PartitionState) -> dict[int, dict[int, set[int]]]:
+class _Offers:
     """Giver -> its whole cells -> neighbouring regions smaller by more than a cell.
 
     One vectorised pass over all neighbouring cell pairs (numpy) instead of a Python scan of
     every region's cells: the relieve move runs hundreds of times on a stalled partition.
+    The per-giver dictionaries are built only for the givers _relieve gets to (it stops
+    after the largest few).
     """
-    label = np.asarray(state.label, dtype=np.int64)
-    load = np.asarray(state.load, dtype=np.int64)
-    own = label[state.edge_src]
-    other = label[state.edge_dst]
-    mask = (own >= 0) & (other >= 0) & (own != other)
-    mask[mask] &= load[other[mask]] + WHOLE < load[own[mask]]
-    offers: dict[int, dict[int, set[int]]] = {}
-    for u, giver, y in zip(state.edge_src[mask].tolist(), own[mask].tolist(),
-                           other[mask].tolist(), strict=True):
-        offers.setdefault(giver, {}).setdefault(u, set()).add(y)
-    return offers
+
+    def __init__(self, state: PartitionState) -> None:
+        label = np.asarray(state.label, dtype=np.int64)
+        load = np.asarray(state.load, dtype=np.int64)
+        own = label[state.edge_src]
+        other = label[state.edge_dst]
+        mask = (own >= 0) & (other >= 0) & (own != other)
+        mask[mask] &= load[other[mask]] + WHOLE < load[own[mask]]
+        self._cell = state.edge_src[mask]
+        self._own = own[mask]
+        self._other = other[mask]
+        self.givers: list[int] = np.unique(self._own).tolist()
+
+    def of(self, giver: int) -> dict[int, set[int]]:
+        pick = self._own == giver
+        out: dict[int, set[int]] = {}
+        for u, y in zip(self._cell[pick].tolist(), self._other[pick].tolist(), strict=True):
+            out.setdefault(u, set()).add(y)
+        return out
 
 
 def _piece(state: PartitionState, robot: int, u: int) -> list[int]:

@@ -82,8 +82,8 @@ def cell_distances(state: PartitionState, sources: Sequence[int], cells: set[int
 def sub_cell_route(area: WorkArea, start: SubCell, goal: set[SubCell]
                    ) -> tuple[SubCell, ...] | None:
     """A shortest 4-connected walk over the area's sub-cells from start into ``goal``."""
-    free = area.sub_cells
-    h, w = free.shape
+    h, w = area.sub_cells.shape
+    free: list[list[bool]] = area.sub_cells.tolist()  # Python lists: numpy element access is slow
     parent: dict[SubCell, SubCell] = {start: start}
     queue = deque([start])
     while queue:
@@ -95,7 +95,8 @@ def sub_cell_route(area: WorkArea, start: SubCell, goal: set[SubCell]
             return tuple(path[::-1])
         r, c = at
         for nxt in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
-            if 0 <= nxt[0] < h and 0 <= nxt[1] < w and free[nxt] and nxt not in parent:
+            if 0 <= nxt[0] < h and 0 <= nxt[1] < w and free[nxt[0]][nxt[1]] \
+                    and nxt not in parent:
                 parent[nxt] = at
                 queue.append(nxt)
     return None

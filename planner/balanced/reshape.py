@@ -12,7 +12,9 @@ from __future__ import annotations
 
 from collections import deque
 
-from planner.balanced.state import PartitionState, articulation_points
+import numpy as np
+
+from planner.balanced.state import PartitionState, splits
 from planner.grid import cell_of
 
 WHOLE = 4
@@ -36,16 +38,22 @@ def reshape_pairs(state: PartitionState, tries: int) -> bool:
 
 
 def _neighbour_pairs(state: PartitionState) -> list[tuple[int, int]]:
-    """(smaller, larger) load pairs of regions whose whole cells touch."""
-    seen: set[tuple[int, int]] = set()
-    for robot in range(state.k):
-        for u in state.whole[robot]:
-            for v in state.neighbours[u]:
-                other = state.label[v]
-                if other >= 0 and other != robot:
-                    a, b = sorted((robot, other), key=lambda r: (state.load[r], r))
-                    seen.add((a, b))
-    return sorted(seen)
+    """(smaller, larger) load pairs of regions whose whole cells touch, sorted.
+
+    "Smaller" orders by (load, robot). One vectorised pass over all neighbouring cell
+    pairs (numpy), as in balance._Offers: this runs before every re-split attempt.
+    """
+    label = np.asarray(state.label, dtype=np.int64)
+    load = np.asarray(state.load, dtype=np.int64)
+    own = label[state.edge_src]
+    other = label[state.edge_dst]
+    mask = (own >= 0) & (other >= 0) & (own != other)
+    own, other = own[mask], other[mask]
+    own_first = (load[own] < load[other]) | ((load[own] == load[other]) & (own < other))
+    small = np.where(own_first, own, other)
+    big = np.where(own_first, other, own)
+    pairs = np.unique(small * state.k + big).tolist()
+    return [divmod(p, state.k) for p in pairs]
 
 
 def _resplit(state: PartitionState, big: int, small: int, moved: int) -> bool:
@@ -86,19 +94,18 @@ def _ball(state: PartitionState, union: set[int], grower: int, other: int,
     rank = {v: (dist.get(v, 0) - far.get(v, 0), dist.get(v, 0), v) for v in union}
     ball = {source}
     rest = union - ball
+    # cells of rest next to the ball that it may take, kept up to date as the ball grows
+    around = {v for v in state.neighbours[source] if v in rest and v not in blocked}
     while len(ball) < size:
-        cut: set[int] | None = None  # exact cut cells of rest, only if the local test fails
-        frontier = sorted({v for u in ball for v in state.neighbours[u]
-                           if v in rest and v not in blocked},
-                          key=lambda v: (not state.pinned(v), rank[v]))
-        for v in frontier:
-            if not state.locally_removable_from(rest, v) and cut is None:
-                cut = articulation_points(rest, state.neighbours)
-            plain = cut is None or v not in cut
+        for v in sorted(around, key=lambda v: (not state.pinned(v), rank[v])):
+            plain = state.locally_removable_from(rest, v) or not splits(rest, state.neighbours, v)
             swallow = {v} if plain else _cut_off(state, rest, v, keep, blocked)
             if swallow and len(ball) + len(swallow) <= size:
                 ball |= swallow
                 rest -= swallow
+                around -= swallow
+                around.update(x for u in swallow for x in state.neighbours[u]
+                              if x in rest and x not in blocked)
                 break
         else:
             return None

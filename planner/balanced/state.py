@@ -8,12 +8,14 @@ can log its inverse, so a chain of transfers that turns out infeasible half-way 
 
 from __future__ import annotations
 
+import functools
+from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
 from planner.balanced.types import LeafCell, Partition, Region
-from planner.types import BoolArray, Cell, SubCell
+from planner.types import BoolArray, Cell, IntArray, SubCell
 
 UNCLAIMED = -1
 SHARED = -2  # a cell divided between regions as leaves
@@ -32,18 +34,10 @@ class PartitionState:
         self.width = w
         self.starts = tuple(starts)
         self.k = len(starts)
-        free = cells.ravel().tolist()
-        self.free: list[bool] = [bool(f) for f in free]
-        self.neighbours: list[list[int]] = [[] for _ in range(h * w)]
-        for u in np.flatnonzero(cells.ravel()).tolist():
-            r, c = divmod(u, w)
-            for rr, cc in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
-                if 0 <= rr < h and 0 <= cc < w and free[rr * w + cc]:
-                    self.neighbours[u].append(rr * w + cc)
-        # every ordered pair of neighbouring free cells, for vectorised boundary scans
-        self.edge_src = np.asarray([u for u, vs in enumerate(self.neighbours) for _ in vs],
-                                   dtype=np.int64)
-        self.edge_dst = np.asarray([v for vs in self.neighbours for v in vs], dtype=np.int64)
+        # shared, never changed: a plan partitions the same area up to a dozen times
+        self.free, self.neighbours, self.edge_src, self.edge_dst = grid_graph(
+            h, w, np.asarray(cells, dtype=bool).tobytes())
+        self.ring = ring_cells(h, w)
         self.label: list[int] = [UNCLAIMED] * (h * w)
         self.whole: list[set[int]] = [set() for _ in range(self.k)]
         self.leaves: list[list[LeafCell]] = [[] for _ in range(self.k)]
@@ -92,15 +86,16 @@ class PartitionState:
             self._log.append(undo)
 
     # -- changes -------------------------------------------------------------------------
-    def _touch(self, u: int, *robots: int) -> None:
-        """Bump the version of ``robots`` and of every region owning ``u`` or a neighbour."""
-        version = self.region_version
-        for robot in robots:
-            if robot >= 0:
-                version[robot] += 1
-        for v in (u, *self.neighbours[u]):
-            if self.label[v] >= 0:
-                version[self.label[v]] += 1
+    def _touch(self, u: int, robot: int = UNCLAIMED) -> None:
+        """Bump the version of ``robot`` and of every region owning ``u`` or a neighbour."""
+        version, label = self.region_version, self.label
+        if robot >= 0:
+            version[robot] += 1
+        if label[u] >= 0:
+            version[label[u]] += 1
+        for v in self.neighbours[u]:
+            if label[v] >= 0:
+                version[label[v]] += 1
 
     def claim(self, robot: int, u: int) -> None:
         """Make free cell ``u`` a whole cell of ``robot``'s region."""
@@ -110,7 +105,9 @@ class PartitionState:
         self.load[robot] += 4
         self._cut.pop(robot, None)
         self.pieces.pop(robot, None)
-        self._record(lambda: self.release(robot, u))
+        self.version += 1
+        if self._log is not None:  # the undo closure costs more than the change itself
+            self._log.append(lambda: self.release(robot, u))
 
     def release(self, robot: int, u: int, label: int = UNCLAIMED) -> None:
         self.whole[robot].discard(u)
@@ -119,7 +116,9 @@ class PartitionState:
         self.load[robot] -= 4
         self._cut.pop(robot, None)
         self.pieces.pop(robot, None)
-        self._record(lambda: self.claim(robot, u))
+        self.version += 1
+        if self._log is not None:
+            self._log.append(lambda: self.claim(robot, u))
 
     def add_leaf(self, robot: int, leaf: LeafCell) -> None:
         self.leaves[robot].append(leaf)
@@ -166,6 +165,18 @@ class PartitionState:
             self._cut[robot] = cut
         return cut
 
+    def is_cut(self, robot: int, u: int) -> bool:
+        """Whether ``u`` is an articulation cell of the region's whole cells.
+
+        The cached cut cells when the region has not changed since they were computed;
+        else the local test, and only if it fails the cut cells (computed and cached): the
+        next queries on this region then cost a set lookup.
+        """
+        cut = self._cut.get(robot)
+        if cut is not None:
+            return u in cut
+        return not self.locally_removable(robot, u) and u in self.cut_cells(robot)
+
     def locally_removable(self, robot: int, u: int) -> bool:
         """Whether ``u``'s region neighbours stay linked around it (then ``u`` is no cut).
 
@@ -174,23 +185,20 @@ class PartitionState:
         cannot disconnect them. A sufficient test only (a loop round a hole is missed), so
         callers fall back to cut_cells when it says no.
         """
-        return self._ring_test(u, lambda v: self.label[v] == robot)
+        label = self.label
+        mask = 0
+        for bit, v in self.ring[u]:
+            if label[v] == robot:
+                mask |= bit
+        return RING_REMOVABLE[mask]
 
     def locally_removable_from(self, cells: set[int], u: int) -> bool:
         """locally_removable for any set of cells (``u`` in it): a sufficient no-cut test."""
-        return self._ring_test(u, cells.__contains__)
-
-    def _ring_test(self, u: int, inside: Callable[[int], bool]) -> bool:
-        w = self.width
-        r, c = divmod(u, w)
-        h = len(self.label) // w
-        ring = []
-        for dr, dc in ((-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1), (0, -1)):
-            rr, cc = r + dr, c + dc
-            ring.append(0 <= rr < h and 0 <= cc < w and inside(rr * w + cc))
-        if not any(ring[1::2]):
-            return False
-        return all(ring) or _side_runs(ring) == 1
+        mask = 0
+        for bit, v in self.ring[u]:
+            if v in cells:
+                mask |= bit
+        return RING_REMOVABLE[mask]
 
     def to_partition(self, transfers: int) -> Partition:
         regions = []
@@ -243,6 +251,72 @@ def articulation_points(nodes: set[int], neighbours: list[list[int]]) -> set[int
     return out
 
 
+@functools.lru_cache(maxsize=8)
+def grid_graph(h: int, w: int, cells: bytes
+               ) -> tuple[list[bool], list[list[int]], IntArray, IntArray]:
+    """Free flags, 4-neighbour lists and every ordered pair of neighbouring free cells
+    (edge_src, edge_dst: for vectorised boundary scans) of an h x w grid given as bytes.
+
+    Cells are flat indices ``r * w + c``. Cached: callers must not change the results.
+    """
+    free = [bool(b) for b in cells]
+    neighbours: list[list[int]] = [[] for _ in range(h * w)]
+    for u in range(h * w):
+        if not free[u]:
+            continue
+        r, c = divmod(u, w)
+        for rr, cc in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
+            if 0 <= rr < h and 0 <= cc < w and free[rr * w + cc]:
+                neighbours[u].append(rr * w + cc)
+    edge_src = np.asarray([u for u, vs in enumerate(neighbours) for _ in vs], dtype=np.int64)
+    edge_dst = np.asarray([v for vs in neighbours for v in vs], dtype=np.int64)
+    edge_src.setflags(write=False)
+    edge_dst.setflags(write=False)
+    return free, neighbours, edge_src, edge_dst
+
+
+@functools.cache
+def ring_cells(h: int, w: int) -> tuple[tuple[tuple[int, int], ...], ...]:
+    """Per cell of an h x w grid, (bit, cell) for the cells of its ring (RING) on the grid."""
+    return tuple(
+        tuple((1 << i, (u // w + dr) * w + u % w + dc) for i, (dr, dc) in enumerate(RING)
+              if 0 <= u // w + dr < h and 0 <= u % w + dc < w)
+        for u in range(h * w))
+
+
+def splits(nodes: set[int], neighbours: list[list[int]], v: int) -> bool:
+    """Whether ``v`` is an articulation point of ``nodes``: its neighbours there fall apart.
+
+    A breadth-first search from one neighbour that stops once it has met the others, so a
+    cell on a loop costs a walk round the loop, not a pass over all of ``nodes``.
+    """
+    around = [x for x in neighbours[v] if x in nodes]
+    if len(around) < 2:
+        return False
+    missing = set(around[1:])
+    seen = {v, around[0]}
+    queue = deque([around[0]])
+    while queue:
+        a = queue.popleft()
+        for b in neighbours[a]:
+            if b in nodes and b not in seen:
+                if b in missing:
+                    missing.discard(b)
+                    if not missing:
+                        return False
+                seen.add(b)
+                queue.append(b)
+    return True
+
+
+def _ring_removable(mask: int) -> bool:
+    """The local cut test on one ring of 8 cells (bit i set: ring cell i is in the region)."""
+    ring = [bool(mask >> i & 1) for i in range(8)]
+    if not any(ring[1::2]):
+        return False
+    return all(ring) or _side_runs(ring) == 1
+
+
 def _side_runs(ring: list[bool]) -> int:
     """Runs of consecutive region cells round the ring that contain a side cell.
 
@@ -262,3 +336,8 @@ def _side_runs(ring: list[bool]) -> int:
             runs += has_side
             inside = has_side = False
     return runs
+
+
+# the 8 cells around a cell, in ring order (odd positions are the 4 side cells)
+RING = ((-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1), (0, -1))
+RING_REMOVABLE = tuple(_ring_removable(mask) for mask in range(256))

@@ -37,19 +37,23 @@ def voronoi_labels(state: PartitionState) -> IntArray:
     free_cols = np.asarray(open_cells, dtype=np.int64)
     reach = dist.min(axis=0) < _UNREACHABLE
     cols = free_cols[reach]
-    dist = dist[:, reach].astype(np.float64)
+    # cells x robots, contiguous per cell: the argmin over a cell's robots is the inner loop
+    dist_t = np.ascontiguousarray(dist[:, reach].T, dtype=np.float64)
+    shifted = np.empty_like(dist_t)
     target = len(cols) / len(robots)
+    cap = int(np.ceil(target))
     scale = max(1.0, float(np.sqrt(target)))
     weights = np.zeros(len(robots))
     best: tuple[int, IntArray] | None = None
     step = STEP
     for _ in range(ITERATIONS):
-        owner = np.argmin(dist + weights[:, None], axis=0)
+        np.add(dist_t, weights, out=shifted)
+        owner = shifted.argmin(axis=1)
         sizes = np.bincount(owner, minlength=len(robots))
         worst = int(sizes.max())
         if best is None or worst < best[0]:
             best = (worst, owner)
-        if worst <= np.ceil(target):
+        if worst <= cap:
             break
         weights += step * scale * (sizes - target) / target
         step *= DECAY
@@ -60,17 +64,15 @@ def voronoi_labels(state: PartitionState) -> IntArray:
 
 def _distances(state: PartitionState, cells: list[int], seeds: list[int]) -> IntArray:
     """Breadth-first distances (k x len(cells)) from each seed over the given cells."""
-    position = {u: i for i, u in enumerate(cells)}
-    src: list[int] = []
-    dst: list[int] = []
-    for u in cells:
-        for v in state.neighbours[u]:
-            if v in position:
-                src.append(position[u])
-                dst.append(position[v])
+    position = np.full(len(state.free), -1, dtype=np.int64)
+    position[cells] = np.arange(len(cells))
+    src = position[state.edge_src]
+    dst = position[state.edge_dst]
+    inside = (src >= 0) & (dst >= 0)
     m = len(cells)
-    graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(m, m)).tocsr()
-    found = shortest_path(graph, unweighted=True, indices=[position[s] for s in seeds])
+    graph = coo_matrix((np.ones(int(inside.sum())), (src[inside], dst[inside])),
+                       shape=(m, m)).tocsr()
+    found = shortest_path(graph, unweighted=True, indices=position[seeds].tolist())
     found[~np.isfinite(found)] = _UNREACHABLE
     return found.astype(np.int64)
 
