@@ -1,9 +1,11 @@
 """simhw's hardware API as the ORMSTC driver uses it: one body, one command at a time.
 
-Each command is a query on ``hw/<r>/cmd`` answered when the motion is over in sim time. Unlike
-agent.hardware (the offline agent's client) a bump is returned, not retried: the ORMSTC
-machine backs off and retries itself. Sense commands name their sonars; when simhw runs in
-one-at-a-time mode (it rejects several), every later sense names one.
+Each command is a query on ``hw/<r>/cmd`` answered when the motion is over in sim time, sent
+through agent.hw_link with the retry policy every agent shares (lost replies, a router
+restart: re-asked until the link's deadline, a motion re-sent only if the pose shows it was
+not done). Unlike agent.hardware (the offline agent's client) a bump is returned, not
+retried: the ORMSTC machine backs off and retries itself. Sense commands name their sonars;
+when simhw runs in one-at-a-time mode (it rejects several), every later sense names one.
 
 :func:`look` carries out the machine's ``Sense`` with that body and agent.ormstc_sensing's
 geometry: a thin ray sees one half of a neighbouring cell, so when the other half was never
@@ -13,12 +15,12 @@ with a side sonar and steps back (docs/ormstc.md, "Sensing with a thin sonar").
 
 from __future__ import annotations
 
-import asyncio
-import time
 from typing import Protocol, cast
 
-from agent.errors import FencedError, HardwareError
+from agent.errors import HardwareError
+from agent.hw_link import HwLink, facing, standing_on
 from agent.ormstc_sensing import (
+    HEADING_DELTA,
     BodyTest,
     SonarMap,
     beside,
@@ -29,9 +31,8 @@ from agent.ormstc_sensing import (
     judge,
     sensor_for,
 )
-from bus import keys
 from bus.bridge import Bus
-from bus.messages import HwAction, HwCommand, HwReply, Sensor
+from bus.messages import HwAction, HwReply, Sensor
 from planner.ormstc.types import Cell, CellStatus, Sense, SenseMode, SenseResult, SubCell
 
 _TURNS: dict[int, tuple[HwAction, ...]] = {
@@ -42,51 +43,40 @@ class Body:
     """simhw's hardware API for one robot: commands are queries answered after the motion."""
 
     def __init__(self, bus: Bus, robot: int, incarnation: int, timeout: float) -> None:
-        self._bus = bus
-        self._key = keys.hw_cmd(bus.mission, robot)
+        self.link = HwLink(bus, robot, incarnation, timeout=timeout, on_reply=self._seen)
         self.robot, self.incarnation, self.timeout = robot, incarnation, timeout
         self.pose: tuple[int, int, int] | None = None
         self.one_sonar = False  # set once simhw says one sonar per command
-        self._next = 0
 
-    async def command(self, action: HwAction, sensors: tuple[Sensor, ...] = (),
-                      timeout: float | None = None) -> HwReply:
-        self._next += 1
-        cmd = HwCommand(self._next, self.robot, self.incarnation, action, sensors)
-        wait = self.timeout if timeout is None else timeout
-        replies = await self._bus.query(self._key, cmd, HwReply, timeout=wait)
-        reply = next((rx.msg for rx in replies if rx.msg.cmd_id == cmd.cmd_id), None)
-        if reply is None:
-            raise HardwareError(f"robot {self.robot}: no reply from simhw to '{action}' "
-                                f"within {wait:g} s")
-        if reply.status == "rejected" and "stale" in reply.message:
-            raise FencedError(f"robot {self.robot}: simhw refuses incarnation "
-                              f"{self.incarnation}: {reply.message}")
-        if reply.status in ("ok", "bumped"):
-            self.pose = reply.pose
-        return reply
+    def _seen(self, reply: HwReply) -> None:
+        self.pose = reply.pose
 
     async def must(self, action: HwAction, sensors: tuple[Sensor, ...] = ()) -> HwReply:
-        reply = await self.command(action, sensors)
+        """A command that must answer ok (sense, pose, turns)."""
+        if action in ("turn_left", "turn_right"):
+            assert self.pose is not None
+            want = (self.pose[2] + (1 if action == "turn_right" else -1)) % 4
+            reply = await self.link.motion(action, facing(want))
+        else:
+            reply = await self.link.ask(action, sensors)
         if reply.status != "ok":
             raise HardwareError(f"robot {self.robot}: '{action}' answered {reply.status}: "
                                 f"{reply.message}")
         return reply
 
     async def wait_for_pose(self, patience: float) -> tuple[int, int, int]:
-        deadline = time.monotonic() + patience
-        while True:
-            try:
-                return (await self.must("pose", ())).pose
-            except HardwareError:
-                if time.monotonic() >= deadline:
-                    raise HardwareError(f"robot {self.robot}: simhw did not answer within "
-                                        f"{patience:g} s (is simhw running?)") from None
-                await asyncio.sleep(0.2)
+        return await self.link.wait_for_pose(patience)
+
+    async def step(self) -> HwReply:
+        """One forward step: ``ok``, ``bumped`` or a failure status (never a lost reply)."""
+        assert self.pose is not None
+        r, c, heading = self.pose
+        dr, dc = HEADING_DELTA[heading]
+        return await self.link.motion("forward", standing_on((r + dr, c + dc)))
 
     async def forward(self) -> bool:
         """One step ahead: True if the body moved, False if it bumped."""
-        reply = await self.command("forward")
+        reply = await self.step()
         if reply.status not in ("ok", "bumped"):
             raise HardwareError(f"robot {self.robot}: forward answered {reply.status}: "
                                 f"{reply.message}")
@@ -101,7 +91,7 @@ class Body:
     async def sonar(self, sensors: tuple[Sensor, ...]) -> dict[str, int | None]:
         """Ranges of ``sensors``: one command, or one each in one-at-a-time mode."""
         if len(sensors) > 1 and not self.one_sonar:
-            reply = await self.command("sense", sensors)
+            reply = await self.link.ask("sense", sensors)
             if reply.status == "ok":
                 return dict(reply.sonar)
             if reply.status != "rejected":

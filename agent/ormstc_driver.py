@@ -5,7 +5,8 @@ simhw/lockstep.py does in-process:
 
 - ``Sense`` -> sonar commands (agent.ormstc_body.look: which sonar, turning first when the
   cell is behind, a look from the sub-cell beside for a half never seen; ``--sense-mode
-  single`` or a simhw in one-at-a-time mode: one sonar per command), ``Move`` -> turns and
+  single`` or a simhw in one-at-a-time mode: one sonar per command; each step aside or back
+  is published as a LookStep), ``Move`` -> turns and
   one forward step (a bump is ``MoveResult(ok=False)``),
   ``IsAlive`` -> the failure detector's verdict, ``Broadcast`` -> a bus message
   (agent.ormstc_wire), ``Done`` -> status "done" and a "completed" event.
@@ -31,12 +32,13 @@ from agent.errors import GatherTimeoutError, HardwareError
 from agent.lifecycle import AgentLife, run_agent
 from agent.ormstc_body import Body, look
 from agent.ormstc_config import OrmstcConfig, ormstc_config_from_args
+from agent.ormstc_looks import MarkedSteps, glance
 from agent.ormstc_sensing import (
     HEADING_DELTA,
     SonarMap,
     cell_of,
 )
-from agent.ormstc_wire import WIRE_TYPES, Inbound, TreeBook, key_for, to_wire
+from agent.ormstc_wire import WIRE_TYPES, Inbound, Rejoin, TreeBook, key_for, to_wire
 from bus import keys
 from bus.announce import Announcer
 from bus.bridge import BoundedFifo, Bus, LatestWins
@@ -48,10 +50,12 @@ from bus.messages import (
     DeathNotice,
     EventKind,
     Heartbeat,
+    LookStep,
     OrmstcWire,
     RobotEvent,
     RobotStatus,
 )
+from planner.ormstc.conflicts import restate
 from planner.ormstc.machine import OrmstcMachine
 from planner.ormstc.types import (
     AliveResult,
@@ -60,6 +64,7 @@ from planner.ormstc.types import (
     DeadRobotMsg,
     Event,
     IsAlive,
+    Message,
     Move,
     MoveResult,
     PeerDied,
@@ -110,6 +115,8 @@ class OrmstcAgent(AgentLife):
         self._static_bumps = 0
         self._t0 = time.monotonic()
         self.book = TreeBook()
+        # a peer silent this long was cut off: restate (docs/ormstc.md, "Router restarts")
+        self.rejoin = Rejoin(silence=max(1.0, 5 * config.heartbeat_period))
 
     # --- plumbing -------------------------------------------------------------------------
 
@@ -123,6 +130,7 @@ class OrmstcAgent(AgentLife):
         c, m = self.config, bus.mission
         self.bus = bus
         self.body = Body(bus, self.robot, c.incarnation, c.hw_timeout)
+        self.looking = MarkedSteps(self.body, self._look_step)
         self.inbound = Inbound(self.robot, c.k, bus.drops)
         self.liveness = LivelinessService(
             bus, self.robot, c.incarnation, heartbeat_period=c.heartbeat_period,
@@ -155,6 +163,8 @@ class OrmstcAgent(AgentLife):
     def _on_heartbeat(self, key: str, hb: Heartbeat) -> None:
         if hb.pose is not None and hb.robot != self.robot:
             self.peer_cells[hb.robot] = cell_of((hb.pose[0], hb.pose[1]))
+        if hb.robot != self.robot and self.rejoin.heard(hb.robot, self.now()):
+            self._wake()
 
     def _on_death(self, notice: DeathNotice) -> None:
         robot = notice.robot
@@ -171,11 +181,15 @@ class OrmstcAgent(AgentLife):
         """The state reply: what a late joiner cannot hear again (tree edges, claims)."""
         machine = self.machine
         drops = {f"{kind}.{why}": n for (kind, why), n in self.bus.drops.snapshot().items()}
+        tree = self.book.tree
+        if machine is not None:  # minus cells handed over in a conflict (ormstc/conflicts.py)
+            tree = [edge for edge in tree if edge[1] in machine.mine
+                    and edge[1] not in machine.ceded]
         return AgentState(
             robot=self.robot, incarnation=self.config.incarnation, state=self.state,
             moves=machine.moves if machine else 0, n=0, covered=b"",
             dead=tuple(sorted(self.dead)), took_over=(), drops=drops,
-            tree=tuple(self.book.tree), claims=tuple(self.book.claims))
+            tree=tuple(tree), claims=tuple(self.book.claims))
 
     def _status(self, state: str, message: str = "") -> None:
         self.state = state
@@ -188,13 +202,23 @@ class OrmstcAgent(AgentLife):
             self.robot, self.config.incarnation, kind, subject, detail))
 
     def _broadcast(self, request: Broadcast) -> None:
-        self.sent += 1
-        wire = to_wire(request.message, self.config.incarnation, self.sent)
-        self.book.sent(wire)
-        self.sent_bytes += len(encode(wire))
-        self.bus.publish(key_for(self.bus.mission, wire), wire)
+        self.book.sent(self._publish(request.message))
         if isinstance(request.message, DeadRobotMsg):  # for monitors and mstc up's summary
             self._event("takeover_started", request.message.dead, "its cells are free again")
+
+    def _publish(self, message: Message) -> OrmstcWire:
+        self.sent += 1
+        wire = to_wire(message, self.config.incarnation, self.sent)
+        self.sent_bytes += len(encode(wire))
+        self.bus.publish(key_for(self.bus.mission, wire), wire)
+        return wire
+
+    def _restate(self, machine: OrmstcMachine) -> None:
+        """Say again what peers must know of this robot and may have lost (a restart)."""
+        said = restate(machine)
+        for message in said:
+            self._publish(message)
+        self._say(f"restated {len(said)} messages (peers were cut off)")
 
     def may_hold_body(self, cell: Cell) -> bool:
         """A robot body can stand in ``cell`` (see agent.ormstc_sensing)."""
@@ -205,16 +229,24 @@ class OrmstcAgent(AgentLife):
     # --- requests -------------------------------------------------------------------------
 
     async def sense(self, request: Sense) -> SenseResult:
-        return await look(self.body, self.sonar, request, self.config.sense_mode,
+        return await look(self.looking, self.sonar, request, self.config.sense_mode,
                           self.may_hold_body)
+
+    def _look_step(self, seq: int, cell: SubCell) -> None:
+        """A step made only to sense, published so that a report does not take it for a
+        coverage revisit (LookStep)."""
+        self.bus.publish(keys.look_steps(self.bus.mission, self.robot),
+                         LookStep(self.robot, self.config.incarnation, seq, cell))
 
     async def move(self, to: SubCell) -> bool:
         assert self.body.pose is not None
         delta = (to[0] - self.body.pose[0], to[1] - self.body.pose[1])
         await self.body.face(HEADING_DELTA.index(delta))
-        reply = await self.body.command("forward")
+        reply = await self.body.step()
         if reply.status == "ok":
             self._static_bumps = 0
+            # rays from every sub-cell walked spare looks from beside (agent.ormstc_looks)
+            await glance(self.body, self.sonar, self.may_hold_body)
             return True
         if reply.status != "bumped":
             raise HardwareError(f"robot {self.robot}: forward answered {reply.status}: "
@@ -264,6 +296,8 @@ class OrmstcAgent(AgentLife):
         reported = False  # the last Done state announced
         settled_since: float | None = None
         while True:
+            if self.rejoin.take(self.now()):
+                self._restate(machine)
             events: list[Event] = [Tick(self.now()), *self.pending]
             self.pending = []
             if answer is not None:
@@ -283,8 +317,8 @@ class OrmstcAgent(AgentLife):
                     return
             else:
                 settled_since = None
-            wake = machine.wake_time()
-            delay = 0.0 if wake is None else min(wake - now, self.config.announce_period)
+            wake = min(machine.wake_time() or now, self.rejoin.next_due() or float("inf"))
+            delay = min(wake - now, self.config.announce_period)
             if delay > 0:
                 self.news.clear()
                 with contextlib.suppress(TimeoutError):
@@ -305,7 +339,8 @@ class OrmstcAgent(AgentLife):
 
     def _finished(self, done: bool, machine: OrmstcMachine) -> None:
         detail = (f"{machine.moves} moves, {len(machine.mine)} cells, {self.sent} messages, "
-                  f"{self.sent_bytes} bytes, {self.sonar.steps} steps to look")
+                  f"{self.sent_bytes} bytes, {self.sonar.steps} steps to look, "
+                  f"{self.sonar.glance_readings} readings after moves")
         if done:
             self._status("done")
             self._event("completed", detail=detail)
@@ -323,7 +358,10 @@ class OrmstcAgent(AgentLife):
         self._event("started")
         self._say("driving")
         await self._drive(self.machine)
-        self._say(f"completed after {self.machine.moves} moves")
+        m = self.machine
+        self._say(f"completed after {m.moves} moves; {len(m.conflicts)} claim conflicts "
+                  f"({m.cut} cells handed over), {self.rejoin.count} restatements, "
+                  f"{self.inbound.repeats} repeats heard")
 
 
 def run_ormstc(args: argparse.Namespace) -> int:

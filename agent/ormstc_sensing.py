@@ -80,6 +80,7 @@ class SonarMap:
     # sub-cell beside, the forward steps they made (two each unless a body was in the way)
     # and the quarter turns made only to look
     readings: int = 0
+    glance_readings: int = 0  # of the readings, those taken after a move (agent.ormstc_looks)
     beside_looks: int = 0
     steps: int = 0
     turns: int = 0
@@ -97,6 +98,18 @@ class SonarMap:
             self.static.add(hit)
             self.free.discard(hit)
         return hit
+
+
+def shows_news(sonar: SonarMap, pos: SubCell, direction: int) -> bool:
+    """Whether a ray from ``pos`` along ``direction`` could cross a sub-cell never seen: one
+    neither seen free nor known blocked before the first known obstacle on the way."""
+    for step in range(1, sonar.max_range + 1):
+        sub = ahead(pos, direction, step)
+        if sub in sonar.static:
+            return False
+        if sub not in sonar.free:
+            return True
+    return False
 
 
 def judge(cell: Cell, pos: SubCell, direction: int, reading: int | None, sonar: SonarMap,

@@ -6,7 +6,11 @@ life, over all ORMSTC kinds), published on ``mstc/<m>/ormstc/<kind>/<robot>``. A
 one QoS (bus.qos CRITICAL), so one sender's messages stay in order across keys: the machine
 assumes FIFO per sender. A receiver drops (and counts) a message about a robot outside the
 fleet, on a key naming another robot, or from a life older than one already heard; a gap in
-``seq`` is counted, not repaired (what Zenoh loses during a router outage stays lost).
+``seq`` is counted. What Zenoh loses during a router outage is not repaired message by
+message: when a peer is heard again after a silence (:class:`Rejoin`), every robot restates
+what its peers must know of it (planner.ormstc.conflicts.restate) with fresh ``seq`` numbers,
+and a receiver drops a start, tree edge or freed robot it already heard from that life
+(counted in ``Inbound.repeats``), so hearing a restatement changes nothing else.
 """
 
 from __future__ import annotations
@@ -98,6 +102,8 @@ class Inbound:
     life: dict[int, int] = field(default_factory=dict)  # robot -> newest incarnation heard
     last_seq: dict[int, int] = field(default_factory=dict)
     gaps: int = 0
+    repeats: int = 0  # facts heard again (restatements), not delivered
+    _facts: set[tuple[object, ...]] = field(default_factory=set)
 
     def accept(self, key: str, wire: OrmstcWire) -> Message | None:
         """The machine message to deliver, or None (own echo, or dropped and counted)."""
@@ -124,11 +130,69 @@ class Inbound:
         if self._peers_out_of_range(wire):
             self.drops.count(kind, "invalid", f"{wire} names a robot outside the fleet")
             return None
+        fact = _fact(wire)
+        if fact is not None:
+            if fact in self._facts:
+                self.repeats += 1
+                return None
+            self._facts.add(fact)
         return from_wire(wire)
 
     def _peers_out_of_range(self, wire: OrmstcWire) -> bool:
         other = getattr(wire, "dead", getattr(wire, "peer", None))
         return other is not None and not 0 <= other < self.k
+
+
+def _fact(wire: OrmstcWire) -> tuple[object, ...] | None:
+    """What a start, tree edge or freed robot says for good (claims, completions and
+    withdrawals are not facts: they may be said again and mean something new)."""
+    if isinstance(wire, OrmstcStart):
+        return (wire.robot, wire.incarnation, "start", wire.sub)
+    if isinstance(wire, OrmstcTreeEdge):
+        return (wire.robot, wire.incarnation, "tree", wire.parent, wire.child)
+    if isinstance(wire, OrmstcDeadRobot):
+        return (wire.robot, wire.incarnation, "dead", wire.dead)
+    return None
+
+
+@dataclass
+class Rejoin:
+    """When to restate this robot's ORMSTC messages: a peer heard again after ``silence``
+    seconds without a heartbeat was cut off (a router restart, a broken link), and whatever
+    either side said meanwhile is lost. Restate ``delays`` after that (the first lets the
+    peer's subscriptions reach the router, the second covers a peer that came back later);
+    due times closer than the first delay are merged, so a fleet coming back costs each
+    robot one or two restatements, and a mission without outages none."""
+
+    silence: float
+    delays: tuple[float, ...] = (0.3, 1.5)
+    last_heard: dict[int, float] = field(default_factory=dict)
+    due: list[float] = field(default_factory=list)
+    count: int = 0  # restatements made
+
+    def heard(self, robot: int, now: float) -> bool:
+        """Note a sign of life of ``robot``; True if it ends a silence."""
+        last = self.last_heard.get(robot)
+        self.last_heard[robot] = now
+        if last is None or now - last < self.silence:
+            return False
+        for delay in self.delays:
+            at = now + delay
+            if all(abs(t - at) >= self.delays[0] for t in self.due):
+                self.due.append(at)
+        self.due.sort()
+        return True
+
+    def take(self, now: float) -> bool:
+        """Whether a restatement is due at ``now`` (each due time is used once)."""
+        if not self.due or self.due[0] > now:
+            return False
+        self.due = [t for t in self.due if t > now]
+        self.count += 1
+        return True
+
+    def next_due(self) -> float | None:
+        return self.due[0] if self.due else None
 
 
 @dataclass

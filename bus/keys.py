@@ -9,6 +9,7 @@ Layout (``<r>`` robot id, ``<i>`` incarnation)::
     mstc/<m>/status/<r>             RobotStatus (hello, re-announced)
     mstc/<m>/progress/<r>           Progress
     mstc/<m>/event/<r>              RobotEvent
+    mstc/<m>/look/<r>               LookStep (ORMSTC: a step made only to sense)
     mstc/<m>/death/<r>              DeathNotice (<r> = the dead robot)
     mstc/<m>/alive/<r>/<i>          liveliness token
     mstc/<m>/state/<r>              queryable: the robot's re-learnable state
@@ -42,7 +43,7 @@ ROOT = "mstc"
 _MISSION_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 # Robot-scoped kinds whose key is mstc/<m>/<kind>/<robot>.
-_PER_ROBOT = ("hb", "status", "progress", "event", "death", "state")
+_PER_ROBOT = ("hb", "status", "progress", "event", "death", "state", "look")
 _ORMSTC = ("tree", "claim", "conn", "start", "dead", "done", "withdraw")
 _SIM = ("pose", "cover", "bump")
 
@@ -108,6 +109,14 @@ def events(mission: str, robot: int) -> str:
 
 def all_events(mission: str) -> str:
     return _all("event", mission)
+
+
+def look_steps(mission: str, robot: int) -> str:
+    return _per_robot("look", mission, robot)
+
+
+def all_look_steps(mission: str) -> str:
+    return _all("look", mission)
 
 
 def death(mission: str, robot: int) -> str:

@@ -122,6 +122,20 @@ class Progress:
 
 @message
 @dataclass(frozen=True)
+class LookStep:
+    """An ORMSTC robot stepped into ``cell`` (a sub-cell of its own cell) only to sense: the
+    ``seq``-th step aside or back of a look from beside (docs/ormstc.md, sensing), so that a
+    report can tell these entries from coverage revisits."""
+
+    KIND: ClassVar[str] = "look_step"
+    robot: int
+    incarnation: int
+    seq: int
+    cell: SubCell
+
+
+@message
+@dataclass(frozen=True)
 class RobotEvent:
     KIND: ClassVar[str] = "event"
     robot: int

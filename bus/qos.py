@@ -36,6 +36,7 @@ DEFAULT = STREAM
 _BY_TYPE: dict[type[Any], Qos] = {
     m.Heartbeat: HEARTBEAT,
     m.RobotEvent: CRITICAL,
+    m.LookStep: CRITICAL,  # a lost one would make a report see a coverage revisit
     m.DeathNotice: CRITICAL,
     m.MissionStatus: CRITICAL,
     m.RobotStatus: CRITICAL,

@@ -90,7 +90,8 @@ def test_json_is_stable(tmp_path: Path) -> None:
     assert set(data) == {
         "schema", "version", "mission", "algo", "reachable", "covered", "coverage_percent",
         "complete", "coverage_moves", "coverage_sim_seconds", "coverage_wall_seconds",
-        "sim_seconds", "revisits", "revisited_cells", "robots", "deaths", "conflicts",
+        "sim_seconds", "revisits", "revisited_cells", "look_steps", "look_step_share",
+        "closing_reentries", "coverage_revisits", "robots", "deaths", "conflicts",
         "messages", "malformed_lines", "invariants", "ok", "curve"}
     assert json.loads(json.dumps(data)) == data
 

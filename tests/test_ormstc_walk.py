@@ -8,10 +8,10 @@ from hypothesis import strategies as st
 from oracles import bfs_tree, random_cells
 
 from planner.cycle import stc_cycle
-from planner.ormstc.machine import initial_arrival
 from planner.ormstc.walk import (
     arrival_side,
     cell_of,
+    initial_arrival,
     neighbour,
     predecessor,
     side_of,

@@ -23,6 +23,8 @@ class CoverageMap:
         self.visits: dict[SubCell, int] = {}
         self.owner: dict[SubCell, int] = {}  # the robot that entered first, where known
         self.visitors: dict[SubCell, list[int]] = {}  # robots of each visit seen, in order
+        # entries each robot announced as made only to sense (LookStep), per sub-cell
+        self.looks: dict[SubCell, dict[int, int]] = {}
         self.reported: dict[SubCell, int] = {}
         # (t, sim_time, covered reachable sub-cells; all covered before the map is known)
         self.curve: list[tuple[float, float, int]] = []
@@ -59,6 +61,11 @@ class CoverageMap:
         if visits == 1:
             self.owner.setdefault(cell, robot)
         return True
+
+    def looked(self, robot: int, cell: SubCell) -> None:
+        """``robot`` entered ``cell`` only to sense (its CoverEvent counts the visit too)."""
+        per_robot = self.looks.setdefault(cell, {})
+        per_robot[robot] = per_robot.get(robot, 0) + 1
 
     def set_visits(self, t: float, sim_time: float, cell: SubCell, count: int,
                    positions: Iterable[SubCell]) -> bool:

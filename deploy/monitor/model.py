@@ -11,34 +11,28 @@ model stays the same, so a monitor that joins late converges on the same picture
 from __future__ import annotations
 
 from collections import Counter, deque
-from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
-
-from bus import keys
 from bus.messages import (
-    NO_ROBOT,
     AgentState,
     BumpEvent,
     CoverEvent,
     DeathNotice,
     GroundTruthPose,
     Heartbeat,
+    LookStep,
     MissionStatus,
     Progress,
     RobotEvent,
     RobotStatus,
     WorldState,
-    world_crossed,
-    world_first,
     world_free,
     world_visits,
 )
 from deploy.monitor.coverage import CoverageMap
 from deploy.monitor.ormstc import ClaimBook, fields_of
-from deploy.monitor.planned import planned_edges
+from deploy.monitor.planned import Edge
+from deploy.monitor.robots import RobotView, Roster
 from deploy.monitor.types import (
     Death,
     EventKind,
@@ -48,61 +42,17 @@ from deploy.monitor.types import (
     Record,
     TokenChange,
 )
-from planner.errors import PlannerError
-from planner.types import BoolArray, Cell, SubCell
-
-Pose = tuple[int, int, int]
-
-
-@dataclass
-class RobotView:
-    """One robot as far as the wire tells."""
-
-    robot: int
-    incarnation: int = 0
-    start: SubCell | None = None
-    algo: str = ""
-    state: str = "unknown"
-    pose: Pose | None = None
-    path: list[SubCell] = field(default_factory=list)  # sub-cells entered (ground truth)
-    truth_moves: int = 0  # moves from a WorldState answer (late joiners)
-    reported_moves: int = 0  # the agent's own count (Progress, agent state)
-    revisits: int = 0
-    token: bool | None = None
-    last_heartbeat: float | None = None
-    token_lost: float | None = None
-    death: DeathNotice | None = None
-    failed: bool = False
-    frozen: bool = False
-    done: bool = False
-    left: bool = False
-    ended: str = ""  # "stopped" or "fenced": this life ended on an error
-    took_over: list[int] = field(default_factory=list)
-    messages: int = 0
-    tree_kind: str = ""  # offline plans: the tree kind and seed from the agent's state
-    seed: int = 0
-
-    @property
-    def moves(self) -> int:
-        return max(len(self.path) - 1, self.truth_moves, self.reported_moves, 0)
-
-    @property
-    def dead(self) -> bool:
-        return not self.left and (self.failed or self.death is not None
-                                  or self.token_lost is not None)
+from deploy.monitor.world import WorldPicture
+from planner.types import BoolArray, SubCell
 
 
 class FleetModel:
     """Everything a monitor knows about one mission. Feed it with :meth:`apply`."""
 
     def __init__(self, max_events: int = 1000) -> None:
-        self.robots: dict[int, RobotView] = {}
-        self.cover = CoverageMap()
-        # Tree edges drawn: ORMSTC's own (built) win over those seen crossed by a walk.
-        self.edges: dict[tuple[Cell, Cell], int] = {}
-        self._built: set[tuple[Cell, Cell]] = set()
-        self._planned: tuple[Any, frozenset[tuple[Cell, Cell]] | None] = (None, None)
-        self._firsts_seen: tuple[npt.NDArray[np.uint8], ...] | None = None
+        self.invalid: Counter[str] = Counter()
+        self.roster = Roster(self.invalid)
+        self.world = WorldPicture(self.invalid)
         self.claims = ClaimBook()
         self.mission: MissionStatus | None = None
         self.sim_time = 0.0
@@ -111,12 +61,23 @@ class FleetModel:
         self.events: deque[MonitorEvent] = deque(maxlen=max_events)
         self.event_count = 0
         self.kinds: Counter[str] = Counter()
-        self.invalid: Counter[str] = Counter()
         self.deaths: dict[tuple[int, int], Death] = {}
         self.takeovers: list[tuple[float, int, int | None]] = []
         self._seen_events: set[tuple[Any, ...]] = set()
         self._new: list[MonitorEvent] = []
-        self._parsed: dict[str, keys.ParsedKey | None] = {}
+
+    @property
+    def robots(self) -> dict[int, RobotView]:
+        return self.roster.robots
+
+    @property
+    def cover(self) -> CoverageMap:
+        return self.world.cover
+
+    @property
+    def edges(self) -> dict[Edge, int]:
+        """Tree edges drawn between cells, with the robot whose tree each belongs to."""
+        return self.world.edges
 
     # --- input ---------------------------------------------------------------------------
 
@@ -146,40 +107,11 @@ class FleetModel:
         self._seen_events.add(identity)
         return True
 
-    def robot(self, robot: int) -> RobotView:
-        view = self.robots.get(robot)
-        if view is None:
-            view = self.robots[robot] = RobotView(robot)
-        return view
-
-    def _valid(self, record: Record, robot: Any, what: str) -> RobotView | None:
-        """The robot a message is about, or None (counted) if the id or key disagree."""
-        if isinstance(robot, bool) or not isinstance(robot, int) or robot < 0:
-            self.invalid[f"{what}.robot"] += 1
-            return None
-        parsed = self.parse(record.key)
-        if parsed is not None and parsed.robot is not None and parsed.robot != robot \
-                and parsed.kind not in ("state", "death"):
-            self.invalid[f"{what}.key"] += 1
-            return None
-        view = self.robot(robot)
-        if record.via == "sub":
-            view.messages += 1
-        return view
-
-    def parse(self, key: str) -> keys.ParsedKey | None:
-        """keys.parse, cached: a mission has few distinct keys and each is heard often."""
-        try:
-            return self._parsed[key]
-        except KeyError:
-            parsed = self._parsed[key] = keys.parse(key)
-            return parsed
-
     def _sim(self, sim_time: float) -> None:
         self.sim_time = max(self.sim_time, sim_time)
 
     def _heartbeat(self, record: Record, hb: Heartbeat) -> None:
-        view = self._valid(record, hb.robot, "heartbeat")
+        view = self.roster.valid(record, hb.robot, "heartbeat")
         if view is None or _fenced(view, hb.incarnation):
             return
         view.incarnation = max(view.incarnation, hb.incarnation)
@@ -191,7 +123,7 @@ class FleetModel:
         self._sim(hb.sim_time)
 
     def _status(self, record: Record, st: RobotStatus) -> None:
-        view = self._valid(record, st.robot, "status")
+        view = self.roster.valid(record, st.robot, "status")
         if view is None or st.incarnation < view.incarnation:
             return
         view.incarnation = st.incarnation
@@ -206,7 +138,7 @@ class FleetModel:
                        f"algo {st.algo})")
 
     def _progress(self, record: Record, pr: Progress) -> None:
-        view = self._valid(record, pr.robot, "progress")
+        view = self.roster.valid(record, pr.robot, "progress")
         if view is None:
             return
         cell = (int(pr.cell[0]), int(pr.cell[1]))
@@ -218,7 +150,7 @@ class FleetModel:
         self._sim(pr.sim_time)
 
     def _event(self, record: Record, ev: RobotEvent) -> None:
-        view = self._valid(record, ev.robot, "event")
+        view = self.roster.valid(record, ev.robot, "event")
         if view is None or not self._once("event", ev.robot, ev.incarnation, ev.kind,
                                           ev.subject, ev.detail):
             return
@@ -249,8 +181,14 @@ class FleetModel:
             kind: EventKind = "left" if ev.kind == "leaving" else ev.kind
             self._emit(record.t, kind, r, f"robot {r} {view.state}{detail}")
 
+    def _look_step(self, record: Record, step: LookStep) -> None:
+        view = self.roster.valid(record, step.robot, "look_step")
+        if view is not None and self._once("look", step.robot, step.incarnation, step.seq):
+            view.look_steps += 1
+            self.cover.looked(step.robot, (int(step.cell[0]), int(step.cell[1])))
+
     def _death(self, record: Record, notice: DeathNotice) -> None:
-        view = self._valid(record, notice.robot, "death")
+        view = self.roster.valid(record, notice.robot, "death")
         if view is None:
             return
         ident = (notice.robot, notice.incarnation)
@@ -288,19 +226,19 @@ class FleetModel:
             self._emit(record.t, kind, None, f"mission {status.state}: {status.message}")
 
     def _pose(self, record: Record, gt: GroundTruthPose) -> None:
-        view = self._valid(record, gt.robot, "gt_pose")
+        view = self.roster.valid(record, gt.robot, "gt_pose")
         if view is not None:
             view.pose = (int(gt.pose[0]), int(gt.pose[1]), int(gt.pose[2]))
             self._sim(gt.sim_time)
 
     def _bump(self, record: Record, bump: BumpEvent) -> None:
-        if self._valid(record, bump.robot, "bump") is not None:
+        if self.roster.valid(record, bump.robot, "bump") is not None:
             self._emit(record.t, "bump", bump.robot, f"robot {bump.robot} bumped at "
                                                      f"{tuple(bump.at)} into {tuple(bump.into)}")
             self._sim(bump.sim_time)
 
     def _token(self, record: Record, change: TokenChange) -> None:
-        view = self._valid(record, change.robot, "token")
+        view = self.roster.valid(record, change.robot, "token")
         if view is None or change.incarnation < view.incarnation:
             return
         view.incarnation = change.incarnation
@@ -316,7 +254,7 @@ class FleetModel:
     # --- coverage ------------------------------------------------------------------------
 
     def _cover(self, record: Record, ev: CoverEvent) -> None:
-        view = self._valid(record, ev.robot, "cover")
+        view = self.roster.valid(record, ev.robot, "cover")
         if view is None:
             return
         cell = (int(ev.cell[0]), int(ev.cell[1]))
@@ -324,7 +262,7 @@ class FleetModel:
         if not self.cover.visit(ev.robot, cell, ev.visits):
             return  # a duplicate delivery of a visit already counted
         if view.path:
-            self._crossing(view.path[-1], cell, ev.robot)
+            self.world.crossing(view.path[-1], cell, ev.robot)
         view.path.append(cell)
         heading = view.pose[2] if view.pose else 0
         view.pose = (cell[0], cell[1], heading)
@@ -332,25 +270,8 @@ class FleetModel:
             view.revisits += 1
         self._set_visits(record.t, cell, ev.visits)
 
-    def _crossing(self, a: SubCell, b: SubCell, robot: int) -> None:
-        """A move between two cells runs along a spanning-tree edge (STC never crosses a
-        cell border elsewhere), so the robots' walks show their trees."""
-        ca, cb = (a[0] // 2, a[1] // 2), (b[0] // 2, b[1] // 2)
-        if ca != cb and abs(ca[0] - cb[0]) + abs(ca[1] - cb[1]) == 1:
-            self.edges.setdefault((min(ca, cb), max(ca, cb)), robot)
-
-    def _crossed(self, edge: tuple[Cell, Cell], robot: int) -> None:
-        """simhw's first crosser of a border: the truth, so it replaces the guess made from
-        the order CoverEvents of different robots arrived in (not an edge ORMSTC built)."""
-        if edge not in self._built:
-            self.edges[edge] = robot
-
-    def _built_edge(self, edge: tuple[Cell, Cell], robot: int) -> None:
-        self._built.add(edge)
-        self.edges[edge] = robot
-
     def _set_visits(self, t: float, cell: SubCell, count: int) -> None:
-        if self.cover.set_visits(t, self.sim_time, cell, count, self._positions()):
+        if self.cover.set_visits(t, self.sim_time, cell, count, self.roster.positions()):
             self._emit(t, "world", None, "every reachable sub-cell is covered")
 
     def _world(self, record: Record, state: WorldState) -> None:
@@ -361,9 +282,9 @@ class FleetModel:
         self._sim(state.sim_time)
         for cell, count in self.cover.newer_counts(world_visits(state)):
             self._set_visits(record.t, cell, count)
-        self._world_firsts(state)
+        self.world.merge_firsts(state)
         for truth in state.robots:
-            view = self._valid(record, truth.robot, "world")
+            view = self.roster.valid(record, truth.robot, "world")
             if view is None:
                 continue
             view.pose = (int(truth.pose[0]), int(truth.pose[1]), int(truth.pose[2]))
@@ -372,32 +293,11 @@ class FleetModel:
             if truth.failed and not view.failed:
                 view.failed = True
                 self._emit(record.t, "died", truth.robot, f"robot {truth.robot}'s body failed")
-        if self.cover.check_complete(record.t, self.sim_time, self._positions()):
+        if self.cover.check_complete(record.t, self.sim_time, self.roster.positions()):
             self._emit(record.t, "world", None, "every reachable sub-cell is covered")
 
-    def _world_firsts(self, state: WorldState) -> None:
-        """First visitors and first crossers: what a late joiner never saw happen. Only
-        entries that changed since the last answer are merged (they never change once set),
-        so a periodic answer costs time in proportion to what happened meanwhile."""
-        try:
-            arrays = (world_first(state), *world_crossed(state))
-        except ValueError:
-            self.invalid["world.packing"] += 1
-            return
-        last = self._firsts_seen
-        fresh = [a != NO_ROBOT if b is None or b.shape != a.shape else (a != b) & (a != NO_ROBOT)
-                 for a, b in zip(arrays, last or (None, None, None), strict=True)]
-        self._firsts_seen = arrays
-        first, right, down = arrays
-        for r, c in np.argwhere(fresh[0]):
-            self.cover.owner.setdefault((int(r), int(c)), int(first[r, c]))
-        for r, c in np.argwhere(fresh[1]):
-            self._crossed(((int(r), int(c)), (int(r), int(c) + 1)), int(right[r, c]))
-        for r, c in np.argwhere(fresh[2]):
-            self._crossed(((int(r), int(c)), (int(r) + 1, int(c))), int(down[r, c]))
-
     def _agent_state(self, record: Record, st: AgentState) -> None:
-        view = self._valid(record, st.robot, "agent_state")
+        view = self.roster.valid(record, st.robot, "agent_state")
         if view is None or st.incarnation < view.incarnation:
             return
         if not view.dead and not view.left:
@@ -409,19 +309,19 @@ class FleetModel:
             view.tree_kind, view.seed = st.tree_kind, st.seed
         for event in self.claims.restore(record.t, st.robot, st.tree, st.claims):
             if event.edge is not None:
-                self._built_edge(event.edge, st.robot)
+                self.world.built_edge(event.edge, st.robot)
 
     def _other(self, record: Record, msg: Any) -> None:
         """ORMSTC messages, typed or not."""
         kind = record.kind
         fields = msg.fields if isinstance(msg, Opaque) else fields_of(msg)
-        parsed = self.parse(record.key)
+        parsed = self.roster.parse(record.key)
         if parsed is not None and parsed.kind.startswith("ormstc/"):
             for event in self.claims.apply(record.t, parsed.kind, fields):
                 if event.edge is not None and event.robot is not None:
-                    self._built_edge(event.edge, event.robot)
+                    self.world.built_edge(event.edge, event.robot)
                 if event.kind in ("completed", "withdrawn") and event.robot is not None:
-                    self.robot(event.robot).done = event.kind == "completed"
+                    self.roster.robot(event.robot).done = event.kind == "completed"
                 if event.text:
                     self._emit(record.t, event.kind, event.robot, event.text)
             return
@@ -429,44 +329,21 @@ class FleetModel:
 
     # --- derived -------------------------------------------------------------------------
 
-    def planned_tree(self) -> frozenset[tuple[Cell, Cell]] | None:
-        """The offline plan's tree edges, once the map, every robot's start (ids 0..k-1)
-        and one agreed tree kind and seed are known; None before, or if they make no plan."""
-        views = [self.robots.get(r) for r in range(len(self.robots))]
-        if self.cover.free is None or any(v is None or v.start is None or not v.tree_kind
-                                          for v in views):
-            return None
-        inputs = (self.cover.free.shape, tuple((v.start, v.tree_kind, v.seed)
-                                               for v in views if v is not None))
-        if len({(kind, seed) for _, kind, seed in inputs[1]}) != 1:
-            return None
-        if self._planned[0] != inputs:
-            starts = [start for start, _, _ in inputs[1] if start is not None]
-            _, kind, seed = inputs[1][0]
-            try:
-                edges: frozenset[tuple[Cell, Cell]] | None = planned_edges(
-                    self.cover.free, starts, kind, seed)
-            except PlannerError:
-                self.invalid["plan.unbuildable"] += 1
-                edges = None
-            self._planned = (inputs, edges)
-        return self._planned[1]
-
-    def _positions(self) -> list[SubCell]:
-        where = [v.start for v in self.robots.values() if v.start is not None]
-        return where + [(v.pose[0], v.pose[1]) for v in self.robots.values() if v.pose]
+    def planned_tree(self) -> frozenset[Edge] | None:
+        """The offline plan's tree edges, or None until the wire has told enough to rebuild it."""
+        return self.world.planned_tree(self.robots)
 
     def reachable(self) -> BoolArray | None:
-        return self.cover.reachable(self._positions())
+        return self.cover.reachable(self.roster.positions())
 
     def covered_cells(self) -> dict[SubCell, int]:
         return self.cover.covered_cells()
 
     def covered_count(self) -> int:
-        return self.cover.covered_count(self._positions())
+        return self.cover.covered_count(self.roster.positions())
 
     def total(self) -> int | None:
-        return self.cover.total(self._positions())
+        return self.cover.total(self.roster.positions())
 
     def coverage(self) -> float | None:
         total = self.total()
@@ -477,10 +354,7 @@ class FleetModel:
 
     def counts(self) -> tuple[int, int, int, int]:
         """Robots (known, alive, dead, done)."""
-        views = list(self.robots.values())
-        dead = sum(v.dead for v in views)
-        alive = sum(not v.dead and not v.left for v in views)
-        return len(views), alive, dead, sum(v.done for v in views)
+        return self.roster.counts()
 
     def picture(self) -> Picture:
         visits = self.covered_cells()
@@ -499,6 +373,7 @@ def _fenced(view: RobotView, incarnation: int) -> bool:
 _HANDLERS: dict[type[Any], Any] = {
     Heartbeat: FleetModel._heartbeat, RobotStatus: FleetModel._status,
     Progress: FleetModel._progress, RobotEvent: FleetModel._event,
+    LookStep: FleetModel._look_step,
     DeathNotice: FleetModel._death, MissionStatus: FleetModel._mission,
     GroundTruthPose: FleetModel._pose, BumpEvent: FleetModel._bump,
     TokenChange: FleetModel._token, CoverEvent: FleetModel._cover,

@@ -199,7 +199,9 @@ def side_panel(model: FleetModel, stats: FeedStats) -> RenderableType:
     figures.add_row("sim time", f"{model.sim_time:.1f} s{scale}")
     known, alive, dead, done = model.counts()
     figures.add_row("robots", f"{known}: {alive} alive, {dead} dead, {done} done")
-    figures.add_row("redundancy", f"{model.revisits()} revisits")
+    looks = sum(v.look_steps for v in model.robots.values())
+    figures.add_row("redundancy", f"{model.revisits()} revisits"
+                    + (f" ({looks} of them look steps)" if looks else ""))
     figures.add_row("claims", f"{model.claims.claims}, {len(model.claims.conflicts)} "
                               f"conflicts settled, {len(model.claims.unsettled())} open")
     figures.add_row("messages", f"{model.kinds.total()} ({stats.rate:.0f}/s)")

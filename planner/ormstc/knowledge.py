@@ -47,6 +47,9 @@ class Knowledge:
     # whether any of their owner lists changed: lets the table skip an unchanged re-scan
     watched: set[Cell] = field(default_factory=set)
     watched_changed: bool = False
+    # (cell, robot): a live robot's tree edge into a cell this robot owns, queued for the
+    # machine to resolve (planner/ormstc/conflicts.py); the edge is not recorded until then
+    conflicts: list[tuple[Cell, int]] = field(default_factory=list)
     # message class -> what hearing it does; one dict lookup per message instead of a chain
     handlers: dict[type, Callable[[Any], None]] = field(init=False, repr=False)
 
@@ -111,12 +114,15 @@ class Knowledge:
     def _hear_edge(self, message: TreeEdgeMsg) -> None:
         child = message.child
         holders = self.owners.get(child)
+        robot = message.robot
         if holders is None:
-            self.owners[child] = [message.robot]
+            self.owners[child] = [robot]
             if child in self.watched:
                 self.watched_changed = True
+        elif self.me in holders and robot != self.me and robot not in self.dead:
+            self.conflicts.append((child, robot))
         else:
-            self.own(child, message.robot)
+            self.own(child, robot)
         self._pending.pop(child, None)  # claims.settle
 
     def _hear_claim(self, message: ClaimMsg) -> None:

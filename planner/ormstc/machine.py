@@ -13,7 +13,8 @@ walk around the growing tree); ``step`` resumes it when what it waits for has ar
 that knows the ground truth (the lockstep simulator) may pass ``instant`` answers: sensing and
 liveness are then asked through it inside ``step`` instead of as Sense / IsAlive requests,
 which is the same as answering those requests at once, minus a round trip per question.
-Lines 21-36 (completion, watching, takeover) are in planner/ormstc/watch.py.
+Lines 21-36 (completion, watching, takeover) are in planner/ormstc/watch.py, the
+resolution of two live owners of one cell in planner/ormstc/conflicts.py.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from __future__ import annotations
 import random
 from collections.abc import Generator, Iterable
 
+from planner.ormstc.conflicts import settle
 from planner.ormstc.connections import Connections
 from planner.ormstc.knowledge import Knowledge
 from planner.ormstc.types import (
@@ -49,7 +51,7 @@ from planner.ormstc.types import (
     Tick,
     TreeEdgeMsg,
 )
-from planner.ormstc.walk import DELTA, SIDE_AT, arrival_side, cell_of, neighbour
+from planner.ormstc.walk import DELTA, SIDE_AT, cell_of, neighbour
 from planner.ormstc.watch import watch
 
 _ANSWER, _UNTIL, _WAKE, _FINISHED = 0, 1, 2, 3
@@ -76,6 +78,13 @@ class OrmstcMachine:
         self.mine: set[Cell] = set()
         self.edges: dict[Cell, int] = {}  # bit per side: own tree edge on that side
         self.decided: dict[Cell, int] = {}  # bit per side: the DFS has dealt with it
+        self.parent: dict[Cell, Cell] = {}  # own cells in the order grown -> their parent
+        self.ceded: dict[Cell, int] = {}  # own cells lost in a conflict, still walked: winner
+        self.conflicts: set[tuple[Cell, int]] = set()  # (cell, other owner) resolved
+        self.cut = 0  # cells given up in conflicts
+        self.freed: list[int] = []  # dead robots whose cells this robot announced free
+        self.withdrawn_for: int | None = None  # the peer of the last WithdrawalMsg sent
+        self.asked: Request | None = None  # the last Sense / Move / IsAlive asked
         self.connections = Connections()
         self.moves = 0
         self.bumps = 0
@@ -114,6 +123,8 @@ class OrmstcMachine:
                 know.mark_dead(event.robot)  # type: ignore[union-attr]
             else:
                 self._answer = event
+        if know.conflicts or self.ceded:
+            settle(self)  # planner/ormstc/conflicts.py
         if self._ready():
             self._advance()
         out, self._out = self._out, []
@@ -166,6 +177,7 @@ class OrmstcMachine:
                 return
             self._wait = kind
             if kind == _ANSWER:
+                self.asked = arg  # type: ignore[assignment]
                 self._out.append(arg)  # type: ignore[arg-type]
                 value = self._answer
                 if value is None:
@@ -241,8 +253,8 @@ class OrmstcMachine:
         dr, dc = DELTA[side]
         other = (cell[0] + dr, cell[1] + dc)
         know = self.know
-        if other in self.mine or other in know.obstacle:
-            return None
+        if other in self.mine or other in know.obstacle or cell in self.ceded:
+            return None  # a ceded cell's neighbours are its new owner's to decide
         instant = self.instant
         if other in know.owners:
             holder = know.live_owner(other)
@@ -283,6 +295,8 @@ class OrmstcMachine:
         yield (_UNTIL, self.now + self.config.claim_wait)
         outcome = know.claims.decide(target, self.me, know.live_owner(target), know.dead,
                                      self.now)
+        if cell in self.ceded:
+            return False  # handed over in a conflict while waiting: not ours to grow from
         if not outcome.won and outcome.winner is not None:
             self._connect(outcome.winner, cell, target, unsure=know.live_owner(target) is None)
         return outcome.won
@@ -291,6 +305,7 @@ class OrmstcMachine:
         dr, dc = DELTA[side]
         child = (cell[0] + dr, cell[1] + dc)
         self._take(child)
+        self.parent[child] = cell
         edges = self.edges
         edges[cell] = edges.get(cell, 0) | 1 << side
         back = (side + 2) & 3
@@ -315,6 +330,7 @@ class OrmstcMachine:
         know.mark_dead(robot)
         if robot not in know.released:
             know.released.add(robot)
+            self.freed.append(robot)
             self._send(DeadRobotMsg(self.me, robot))
 
     def _has_edge(self, cell: Cell, side: int) -> bool:
@@ -394,7 +410,3 @@ class OrmstcMachine:
             self.know.mark_dead(robot)
         return alive
 
-
-def initial_arrival(start: SubCell) -> Cell:
-    """Fig. 1: the cell W the robot is deemed to have arrived from, given its start."""
-    return neighbour(cell_of(start), arrival_side(start))

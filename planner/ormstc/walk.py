@@ -80,3 +80,8 @@ def walk_index(start: SubCell, has_edge: EdgeTest, n: int) -> dict[SubCell, int]
         index[pos] = i
         pos = successor(pos, has_edge)
     return index
+
+
+def initial_arrival(start: SubCell) -> Cell:
+    """Fig. 1: the cell W the robot is deemed to have arrived from, given its start."""
+    return neighbour(cell_of(start), arrival_side(start))

@@ -14,7 +14,14 @@ from typing import TYPE_CHECKING
 
 from planner.ormstc.connections import Link
 from planner.ormstc.types import CompletionMsg, Done, SubCell, WithdrawalMsg
-from planner.ormstc.walk import predecessor, side_towards, sub_facing, successor, walk_index
+from planner.ormstc.walk import (
+    cell_of,
+    predecessor,
+    side_towards,
+    sub_facing,
+    successor,
+    walk_index,
+)
 
 if TYPE_CHECKING:
     from planner.ormstc.machine import Flow, OrmstcMachine
@@ -53,7 +60,8 @@ def watch(m: OrmstcMachine) -> Flow:
         if m.finished:
             m.finished = False
             know.completed.discard(m.me)
-            m._send(WithdrawalMsg(m.me, table.links[targets[0]]))
+            m.withdrawn_for = table.links[targets[0]]
+            m._send(WithdrawalMsg(m.me, m.withdrawn_for))
         for link in targets:
             if table.links[link] in know.dead:
                 m._release(table.links[link])
@@ -82,6 +90,8 @@ def take_over(m: OrmstcMachine, link: Link) -> Flow:
     side = side_towards(mine, theirs)
     yield from walk_to(m, sub_facing(mine, side))
     m.connections.drop(link)
+    if mine not in m.mine:
+        return None  # given up in a conflict on the way (planner/ormstc/conflicts.py)
     m.decided[mine] = m.decided.get(mine, 0) & ~(1 << side)
     yield from m._decide(mine, side)
     if m._has_edge(mine, side):
@@ -94,6 +104,6 @@ def walk_to(m: OrmstcMachine, target: SubCell) -> Flow:
     n = 4 * len(m.mine)
     ahead = walk_index(m.pos, m._has_edge, n).get(target, 0)
     step = successor if ahead <= n - ahead else predecessor
-    while m.pos != target:
+    while m.pos != target and cell_of(target) in m.mine:
         yield from m._move_to(step(m.pos, m._has_edge))
     return None
