@@ -15,9 +15,8 @@ import heapq
 
 import numpy as np
 
-from planner.errors import InfeasiblePlanError, PlannerError
-from planner.treecover.rules import split_need
-from planner.treecover.sim import default_splits
+from planner.errors import InfeasiblePlanError
+from planner.treecover.sim import initial_state
 from planner.treecover.state import CoverageState
 from planner.treecover.step import NodeRule, rule_for
 from planner.treecover.types import Algo, CoverageResult, Move, Splits, Tree
@@ -27,13 +26,7 @@ def run_loop_iterations(tree: Tree, robots: int, algo: Algo | str,
                         splits: Splits | None = None) -> CoverageResult:
     """Cover ``tree`` like :func:`run_coverage`, timing by iterations of the paper's loop."""
     algo = Algo(algo)
-    if robots < 1:
-        raise PlannerError(f"need at least one robot (got {robots})")
-    if splits is None:
-        splits = default_splits(tree, robots, algo)
-    state = CoverageState(tree, robots)
-    if algo is Algo.COCTA:
-        state.need = split_need(state, splits)
+    splits, state = initial_state(tree, robots, algo, splits)
     rule = rule_for(algo)
     limit = 4 * tree.n * (tree.height + 2) + 16
     connected = True

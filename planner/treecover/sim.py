@@ -25,10 +25,10 @@ def default_splits(tree: Tree, robots: int, algo: Algo) -> Splits:
     return choose(robots, branching_of(tree), tree.height)
 
 
-def run_coverage(tree: Tree, robots: int, algo: Algo | str,
-                 splits: Splits | None = None) -> CoverageResult:
-    """Cover ``tree`` with ``robots`` robots starting at the root until all are back there."""
-    algo = Algo(algo)
+def initial_state(tree: Tree, robots: int, algo: Algo,
+                  splits: Splits | None = None) -> tuple[Splits, CoverageState]:
+    """The splits (given, or the default) and the team at the root before the first step:
+    the one set-up of the lockstep runs, the loop clock and the agents' replicas."""
     if robots < 1:
         raise PlannerError(f"need at least one robot (got {robots})")
     if splits is None:
@@ -36,6 +36,14 @@ def run_coverage(tree: Tree, robots: int, algo: Algo | str,
     state = CoverageState(tree, robots)
     if algo is Algo.COCTA:
         state.need = split_need(state, splits)
+    return splits, state
+
+
+def run_coverage(tree: Tree, robots: int, algo: Algo | str,
+                 splits: Splits | None = None) -> CoverageResult:
+    """Cover ``tree`` with ``robots`` robots starting at the root until all are back there."""
+    algo = Algo(algo)
+    splits, state = initial_state(tree, robots, algo, splits)
     limit = 4 * tree.n * (tree.height + 2) + 16  # far above any productive run
     connected = True
     explore_time = 0

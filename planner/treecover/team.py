@@ -21,8 +21,7 @@ from collections.abc import Iterable, Mapping
 from planner.errors import InfeasiblePlanError
 from planner.treecover.repair import gather_moves, refill_moves
 from planner.treecover.rules import split_need
-from planner.treecover.sim import default_splits
-from planner.treecover.state import CoverageState
+from planner.treecover.sim import default_splits, initial_state
 from planner.treecover.step import decide
 from planner.treecover.types import Algo, Move, Splits, Tree
 
@@ -55,10 +54,7 @@ class TeamReplica:
                  splits: Splits | None = None) -> None:
         self.tree = tree
         self.algo = Algo(algo)
-        self.splits = splits if splits is not None else default_splits(tree, robots, self.algo)
-        self.state = CoverageState(tree, robots)
-        if self.algo is Algo.COCTA:
-            self.state.need = split_need(self.state, self.splits)
+        self.splits, self.state = initial_state(tree, robots, self.algo, splits)
         self.positions = [0] * robots
         self.alive = [True] * robots
         self.removed: dict[int, int] = {}  # dead robot -> the step after which it was removed
