@@ -17,6 +17,7 @@ Run directory layout::
 from __future__ import annotations
 
 import argparse
+import asyncio
 import json
 import os
 import secrets
@@ -277,6 +278,22 @@ def log_tail(path: Path, lines: int = 15) -> str:
     except OSError:
         return ""
     return "\n".join(text.rstrip().splitlines()[-lines:])
+
+
+async def wait_ready(child: Child, mark: str, timeout: float,
+                     stop: asyncio.Event | None = None) -> None:
+    """Until ``mark`` shows in the child's log; FleetError if it exits first or ``timeout``
+    passes (not when ``stop`` is set: the launcher is stopping anyway)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not (stop is not None and stop.is_set()):
+        if mark in log_tail(child.log, 50):
+            return
+        if child.returncode is not None:
+            last = log_tail(child.log, 3) or f"exit code {child.returncode}"
+            raise FleetError(f"{child.name} failed to start: {last} (log: {child.log})")
+        await asyncio.sleep(0.05)
+    if stop is None or not stop.is_set():
+        raise FleetError(f"{child.name} not ready after {timeout:.0f} s (log: {child.log})")
 
 
 def stop_children(children: list[Child], timeout: float = 5.0) -> None:

@@ -40,10 +40,10 @@ from deploy.fleet import (
     FleetInfo,
     ProcessRecord,
     RunDir,
-    log_tail,
     mstc_argv,
     start_ticks,
     stop_children,
+    wait_ready,
 )
 from deploy.progress import ProgressView, make_progress
 from deploy.summary import MissionTracker, format_summary, summarize
@@ -101,16 +101,7 @@ class Launcher:
         return child
 
     async def _wait_ready(self, child: Child, mark: str, timeout: float) -> None:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline and not self.stop.is_set():
-            if mark in log_tail(child.log, 50):
-                return
-            if child.returncode is not None:
-                last = log_tail(child.log, 1) or f"exit code {child.returncode}"
-                raise FleetError(f"{child.name} failed to start: {last} (log: {child.log})")
-            await asyncio.sleep(0.05)
-        if not self.stop.is_set():
-            raise FleetError(f"{child.name} not ready after {timeout:.0f} s (log: {child.log})")
+        await wait_ready(child, mark, timeout, self.stop)
 
     async def start_router(self) -> None:
         if self.own_router:

@@ -23,7 +23,7 @@ from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
 from bus.router import READY_MARK as ROUTER_READY
 from bus.tree_messages import RadioStats, TreeReport
-from deploy.fleet import Child, FleetError, RunDir, log_tail, mstc_argv, stop_children
+from deploy.fleet import Child, RunDir, mstc_argv, stop_children, wait_ready
 from deploy.tree_observer import ObservedRun, TeamObserver
 from planner.treecover.trees import tree_from_spec
 from simhw.radio import READY_MARK as RADIO_READY
@@ -64,18 +64,6 @@ def free_endpoint() -> str:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
         sock.bind(("127.0.0.1", 0))
         return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
-
-
-async def _wait_ready(child: Child, mark: str, timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if mark in log_tail(child.log, 50):
-            return
-        if child.returncode is not None:
-            last = log_tail(child.log, 3) or f"exit code {child.returncode}"
-            raise FleetError(f"{child.name} failed to start: {last} (log: {child.log})")
-        await asyncio.sleep(0.05)
-    raise FleetError(f"{child.name} not ready after {timeout:.0f} s (log: {child.log})")
 
 
 class TreeFleet:
@@ -127,7 +115,7 @@ class TreeFleet:
             self.router = self._spawn("router", "router", mstc_argv(
                 "router", "--listen", self.endpoint, "--lease-ms", str(o.lease_ms),
                 "--exit-with-parent"))
-            await _wait_ready(self.router, ROUTER_READY, 20.0)
+            await wait_ready(self.router, ROUTER_READY, 20.0)
             settings = ConnectionSettings(connect=(self.endpoint,), mission=o.mission,
                                           lease_ms=o.lease_ms)
             async with Bus.connect(settings) as bus:
@@ -160,7 +148,7 @@ class TreeFleet:
         common = ["--tree", o.tree, "--robots", str(o.robots)]
         self.radio = self._spawn("radio", "radio", mstc_argv("radio", *common,
                                                              *self._connection()))
-        await _wait_ready(self.radio, RADIO_READY, 20.0)
+        await wait_ready(self.radio, RADIO_READY, 20.0)
         for robot in range(o.robots):
             self.agents.append(self._spawn(f"agent-{robot}", "agent", mstc_argv(
                 "tree-agent", "--id", str(robot), *common, "--algo", o.algo,
