@@ -14,6 +14,7 @@ failing id reproduces the scenario.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 import json
 import random
@@ -251,9 +252,24 @@ def up_argv(world: Path, starts: Sequence[SubCell], algo: str, router: str, miss
                 "--run-dir", str(run_dir), *UP_ARGS, *extra)
 
 
-async def finish_up(proc: subprocess.Popen[str]) -> tuple[int, str]:
+def start_up(argv: list[str]) -> subprocess.Popen[str]:
+    return subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+async def finish_up(proc: subprocess.Popen[str], heard: Heard,
+                    run_dir: Path) -> tuple[int, str]:
+    """`mstc up`'s exit code and output, once the test's session has heard as many body moves
+    as the launcher's summary counts (ground truth still in flight when the launcher exits);
+    at most 5 s more, after which the checks see what was heard."""
     out, err = await asyncio.to_thread(proc.communicate, timeout=2 * TIMEOUT)
-    await asyncio.sleep(0.2)  # the last ground-truth messages reach the test's session
+    summary = run_dir / "summary.json"
+    if summary.exists():
+        total = json.loads(summary.read_text()).get("total_moves", 0)
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(5.0):
+                while sum(max(len(w) - 1, 0) for w in heard.walks.values()) < total:
+                    await asyncio.sleep(0.02)
     return proc.returncode, out + err
 
 
@@ -275,12 +291,10 @@ async def test_up_ormstc_with_a_robot_killed_mid_mission(bus: Bus, router: str,
     victim, percent = rng.randrange(3), rng.randint(20, 40)
     heard = Heard()
     await listen(bus, heard)
-    proc = subprocess.Popen(
-        up_argv(world, starts, "ormstc", router, bus.mission, tmp_path / "run", 0,
-                "--kill", f"{victim}@progress={percent}"),
-        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = start_up(up_argv(world, starts, "ormstc", router, bus.mission, tmp_path / "run", 0,
+                            "--kill", f"{victim}@progress={percent}"))
     try:
-        code, output = await finish_up(proc)
+        code, output = await finish_up(proc, heard, tmp_path / "run")
     finally:
         stop_processes([proc])
     assert code == 0, output
@@ -319,12 +333,10 @@ async def test_up_kill_hw_at_a_percentage_fails_a_robot_mid_section(
     victim = case.long_sections[0]
     heard = Heard()
     await listen(bus, heard)
-    proc = subprocess.Popen(
-        up_argv(world, case.starts, case.algo, router, bus.mission, tmp_path / "run", 60,
-                "--kill-hw", f"{victim}@progress=30"),
-        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = start_up(up_argv(world, case.starts, case.algo, router, bus.mission,
+                            tmp_path / "run", 60, "--kill-hw", f"{victim}@progress=30"))
     try:
-        code, output = await finish_up(proc)
+        code, output = await finish_up(proc, heard, tmp_path / "run")
     finally:
         stop_processes([proc])
     assert f"fail body of {victim} at 30 %: done" in output, output
@@ -340,9 +352,7 @@ async def test_mstc_kill_hw_fails_a_running_robot_mid_section(bus: Bus, router: 
     heard = Heard()
     await listen(bus, heard)
     run_dir = tmp_path / "run"
-    proc = subprocess.Popen(
-        up_argv(world, case.starts, case.algo, router, bus.mission, run_dir, 30),
-        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = start_up(up_argv(world, case.starts, case.algo, router, bus.mission, run_dir, 30))
     try:
         # A few moves in: `mstc kill` itself takes a second or two to start and connect.
         async with asyncio.timeout(TIMEOUT):
@@ -354,7 +364,7 @@ async def test_mstc_kill_hw_fails_a_running_robot_mid_section(bus: Bus, router: 
             capture_output=True, text=True, timeout=TIMEOUT)
         assert kill.returncode == 0, kill.stderr
         assert f"mission {bus.mission}" in kill.stdout, kill.stdout
-        code, output = await finish_up(proc)
+        code, output = await finish_up(proc, heard, run_dir)
     finally:
         stop_processes([proc])
     check_body_failure(heard, case, grid, victim, run_dir, code, output)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from treecover_helpers import ALGOS, random_trees
 
 from planner.errors import PlannerError
 from planner.treecover.loop import run_loop_iterations
@@ -23,17 +24,8 @@ from planner.treecover.splits import (
 )
 from planner.treecover.state import CoverageState
 from planner.treecover.step import decide
-from planner.treecover.trees import from_parents, general_tree, office_tree, perfect_tree
+from planner.treecover.trees import general_tree, office_tree, perfect_tree
 from planner.treecover.types import Algo, Splits
-
-ALGOS = ["ncocta", "cocta"]
-
-
-@st.composite
-def random_trees(draw: st.DrawFn):  # type: ignore[no-untyped-def]
-    n = draw(st.integers(1, 40))
-    parent = [-1] + [draw(st.integers(0, i - 1)) for i in range(1, n)]
-    return from_parents(np.array(parent))
 
 
 def _check_run(tree, robots: int, algo: str, splits: Splits | None = None):  # type: ignore[no-untyped-def]

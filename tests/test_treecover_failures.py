@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from treecover_helpers import ALGOS, random_trees
 
 from planner.errors import PlannerError
 from planner.treecover.failures import run_with_failures
@@ -20,15 +21,6 @@ from planner.treecover.state import CoverageState
 from planner.treecover.team import TeamReplica
 from planner.treecover.trees import from_parents, perfect_tree
 from planner.treecover.types import Move, Splits
-
-ALGOS = ["ncocta", "cocta"]
-
-
-@st.composite
-def random_trees(draw: st.DrawFn):  # type: ignore[no-untyped-def]
-    n = draw(st.integers(1, 40))
-    parent = [-1] + [draw(st.integers(0, i - 1)) for i in range(1, n)]
-    return from_parents(np.array(parent))
 
 
 @st.composite

@@ -13,10 +13,7 @@ from __future__ import annotations
 
 import heapq
 
-import numpy as np
-
-from planner.errors import InfeasiblePlanError
-from planner.treecover.sim import initial_state
+from planner.treecover.sim import drive
 from planner.treecover.state import CoverageState
 from planner.treecover.step import NodeRule, rule_for
 from planner.treecover.types import Algo, CoverageResult, Move, Splits, Tree
@@ -26,23 +23,9 @@ def run_loop_iterations(tree: Tree, robots: int, algo: Algo | str,
                         splits: Splits | None = None) -> CoverageResult:
     """Cover ``tree`` like :func:`run_coverage`, timing by iterations of the paper's loop."""
     algo = Algo(algo)
-    splits, state = initial_state(tree, robots, algo, splits)
     rule = rule_for(algo)
-    limit = 4 * tree.n * (tree.height + 2) + 16
-    connected = True
-    explore_time = 0
-    occupied: list[int] = []
-    while not state.done():
-        if not iterate(state, rule, splits) or state.time >= limit:
-            raise InfeasiblePlanError(
-                f"{algo.value} stalled at iteration {state.time} with {robots} robots and "
-                f"splits {list(splits.heights)} ({state.remaining} nodes unvisited)")
-        connected = connected and state.connected()
-        occupied.append(len(state.at))
-        if state.remaining == 0 and not explore_time:
-            explore_time = state.time
-    return CoverageResult(algo, robots, splits, state.time, explore_time, 2 * (tree.n - 1),
-                          connected, np.array(state.visit_time), tuple(occupied))
+    return drive(tree, robots, algo, splits,
+                 lambda state, splits: iterate(state, rule, splits), "iteration")
 
 
 def iterate(state: CoverageState, rule: NodeRule, splits: Splits) -> bool:

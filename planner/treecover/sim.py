@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from planner.errors import InfeasiblePlanError, PlannerError
@@ -43,19 +45,31 @@ def run_coverage(tree: Tree, robots: int, algo: Algo | str,
                  splits: Splits | None = None) -> CoverageResult:
     """Cover ``tree`` with ``robots`` robots starting at the root until all are back there."""
     algo = Algo(algo)
+
+    def step(state: CoverageState, splits: Splits) -> bool:
+        moves = decide(state, algo, splits)
+        if moves:
+            state.apply(moves)
+        return bool(moves)
+
+    return drive(tree, robots, algo, splits, step, "step")
+
+
+def drive(tree: Tree, robots: int, algo: Algo, splits: Splits | None,
+          advance: Callable[[CoverageState, Splits], bool], unit: str) -> CoverageResult:
+    """Run ``advance`` (one time unit; False if nobody could move) from the root until the
+    team is back there, checking connectivity after every unit (Lemma 4.1)."""
     splits, state = initial_state(tree, robots, algo, splits)
     limit = 4 * tree.n * (tree.height + 2) + 16  # far above any productive run
     connected = True
     explore_time = 0
     occupied: list[int] = []
     while not state.done():
-        moves = decide(state, algo, splits)
-        if not moves or state.time >= limit:
+        if state.time >= limit or not advance(state, splits):
             raise InfeasiblePlanError(
-                f"{algo.value} stalled at step {state.time} with {robots} robots and splits "
+                f"{algo.value} stalled at {unit} {state.time} with {robots} robots and splits "
                 f"{list(splits.heights)} ({state.remaining} nodes unvisited): too few robots "
                 "to keep a trail to the unexplored nodes")
-        state.apply(moves)
         connected = connected and state.connected()
         occupied.append(len(state.at))
         if state.remaining == 0 and not explore_time:
