@@ -11,7 +11,7 @@ import argparse
 import importlib.util
 import sys
 
-from agent.types import (
+from agent.core.config import (
     DEFAULT_ANNOUNCE_PERIOD,
     DEFAULT_HW_TIMEOUT,
     DEFAULT_LINGER,
@@ -67,8 +67,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="stay after completion so peers can still query (default "
                              "%(default)s)")
     add_connection_arguments(parser)
-    if importlib.util.find_spec("agent.ormstc_config") is not None:
-        from agent.ormstc_config import add_ormstc_arguments
+    if importlib.util.find_spec("agent.ormstc.options") is not None:
+        from agent.ormstc.options import add_ormstc_arguments
 
         add_ormstc_arguments(parser)
 
@@ -85,7 +85,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
 
 def run(args: argparse.Namespace) -> int:
     if args.algo == ONLINE_ALGO:
-        from agent.ormstc_driver import run_ormstc
+        from agent.ormstc.driver import run_ormstc
 
         return run_ormstc(args)
     if args.world is None:
@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     settings = settings_from_args(args)
     # Imported here so that option mistakes are reported without loading Zenoh.
-    from agent.lifecycle import run_agent
-    from agent.process import Agent
+    from agent.core.lifecycle import run_agent
+    from agent.offline.driver import Agent
 
     return run_agent(Agent(config), settings)

@@ -11,7 +11,7 @@ walks its own. The step after the team is done (all nodes visited, all robots on
 reports once more, so everybody confirms the end, and leaves.
 
 A robot that dies is removed by every survivor at the same step boundary, the first step whose
-report from it never comes (agent.tree_barrier decides when that is known; the argument is in
+report from it never comes (agent.tree.barrier decides when that is known; the argument is in
 docs/treecover.md), and the replica repairs the trail. Deaths are learnt from the liveliness
 service (the infrastructure's view, not the radio's), from peers' ``stopped`` / ``fenced``
 events and from the ``dead`` set of the reports. A report whose ``gone`` set differs from the
@@ -29,9 +29,9 @@ import sys
 import time
 from dataclasses import dataclass
 
-from agent.errors import MissionFailedError
-from agent.lifecycle import AgentLife, run_agent
-from agent.tree_barrier import judge_step
+from agent.core.errors import MissionFailedError
+from agent.core.lifecycle import AgentLife, run_agent
+from agent.tree.barrier import judge_step
 from bus import keys
 from bus.announce import Announcer
 from bus.argtypes import index, positive, positive_int

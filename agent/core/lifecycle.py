@@ -21,7 +21,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Coroutine
 from typing import Any, ClassVar
 
-from agent.errors import AgentError, FencedError, LeaveRequested
+from agent.core.errors import AgentError, FencedError, LeaveRequested
 from bus.announce import Announcer
 from bus.bridge import Bus
 from bus.config import ConnectionSettings

@@ -20,7 +20,7 @@ import asyncio
 import time
 from collections.abc import Callable
 
-from agent.errors import FencedError, HardwareError
+from agent.core.errors import FencedError, HardwareError
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import HwAction, HwCommand, HwReply, Pose, Sensor

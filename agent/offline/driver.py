@@ -6,7 +6,7 @@ robot's start, compute the plan, announce its digest and compare the others', dr
 service (token, heartbeats, failure detector), the announcer (re-publishes status, known
 deaths and the mission verdict; answers state queries) and three watchers that end the group
 with a specific exception: own death notice (FencedError), SIGTERM/SIGINT (LeaveRequested),
-a peer's "failed" verdict (MissionFailedError). That process frame is agent.lifecycle's,
+a peer's "failed" verdict (MissionFailedError). That process frame is agent.core.lifecycle's,
 shared with the ORMSTC agent; this module adds the offline mission and the third watcher.
 """
 
@@ -18,23 +18,24 @@ import time
 from collections.abc import Callable, Coroutine
 from typing import Any
 
-from agent.errors import (
+from agent.core.config import AgentConfig
+from agent.core.errors import (
     AgentError,
     DigestMismatchError,
     GatherTimeoutError,
     MissionFailedError,
 )
-from agent.hardware import Hardware
-from agent.lifecycle import AgentLife
-from agent.peers import PeerTable
-from agent.plan import compute_plan, plan_digest
-from agent.runner import OfflineRunner
-from agent.types import AgentConfig, AgentState, pack_covered
+from agent.core.lifecycle import AgentLife
+from agent.offline.hardware import Hardware
+from agent.offline.peers import PeerTable
+from agent.offline.plan import compute_plan, plan_digest
+from agent.offline.runner import OfflineRunner
 from bus import keys
 from bus.announce import Announcer
 from bus.bridge import BoundedFifo, Bus, LatestWins, Received
 from bus.liveness import HeartbeatInfo, LivelinessService
 from bus.messages import (
+    AgentState,
     DeathNotice,
     EventKind,
     MissionState,
@@ -42,6 +43,7 @@ from bus.messages import (
     Progress,
     RobotEvent,
     RobotStatus,
+    pack_covered,
 )
 from planner.errors import PlannerError
 from planner.maps import resolve_world

@@ -3,15 +3,15 @@
 The machine (planner.ormstc) decides everything; this module carries its requests out, as
 simhw/lockstep.py does in-process:
 
-- ``Sense`` -> sonar commands (agent.ormstc_body.look: which sonar, turning first when the
+- ``Sense`` -> sonar commands (agent.ormstc.body.look: which sonar, turning first when the
   cell is behind, a look from the sub-cell beside for a half never seen; ``--sense-mode
   single`` or a simhw in one-at-a-time mode: one sonar per command; each step aside or back
   is published as a LookStep), ``Move`` -> turns and
   one forward step (a bump is ``MoveResult(ok=False)``),
   ``IsAlive`` -> the failure detector's verdict, ``Broadcast`` -> a bus message
-  (agent.ormstc_wire), ``Done`` -> status "done" and a "completed" event.
+  (agent.ormstc.wire), ``Done`` -> status "done" and a "completed" event.
 - Peer messages and the liveness service's deaths become ``PeerMessage`` / ``PeerDied``;
-  the machine is ticked with the monotonic clock in seconds (agent.ormstc_config says why).
+  the machine is ticked with the monotonic clock in seconds (agent.ormstc.options says why).
 
 Life cycle: read the pose, announce a status ("gathering") once subscribed, wait until every
 robot has announced one (so nobody's StartMsg is published before a peer listens), run the
@@ -28,17 +28,17 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from agent.errors import GatherTimeoutError, HardwareError
-from agent.lifecycle import AgentLife, run_agent
-from agent.ormstc_body import Body, look
-from agent.ormstc_config import OrmstcConfig, ormstc_config_from_args
-from agent.ormstc_looks import MarkedSteps, glance
-from agent.ormstc_sensing import (
+from agent.core.errors import GatherTimeoutError, HardwareError
+from agent.core.lifecycle import AgentLife, run_agent
+from agent.ormstc.body import Body, look
+from agent.ormstc.looks import MarkedSteps, glance
+from agent.ormstc.options import OrmstcConfig, ormstc_config_from_args
+from agent.ormstc.sensing import (
     HEADING_DELTA,
     SonarMap,
     cell_of,
 )
-from agent.ormstc_wire import WIRE_TYPES, Inbound, Rejoin, TreeBook, key_for, to_wire
+from agent.ormstc.wire import WIRE_TYPES, Inbound, Rejoin, TreeBook, key_for, to_wire
 from bus import keys
 from bus.announce import Announcer
 from bus.bridge import BoundedFifo, Bus, LatestWins
@@ -221,7 +221,7 @@ class OrmstcAgent(AgentLife):
         self._say(f"restated {len(said)} messages (peers were cut off)")
 
     def may_hold_body(self, cell: Cell) -> bool:
-        """A robot body can stand in ``cell`` (see agent.ormstc_sensing)."""
+        """A robot body can stand in ``cell`` (see agent.ormstc.sensing)."""
         know = self.machine.know if self.machine is not None else None
         return (know is not None and (cell in know.owners or cell in know.claims.pending)) \
             or cell in self.peer_cells.values()
@@ -245,7 +245,7 @@ class OrmstcAgent(AgentLife):
         reply = await self.body.step()
         if reply.status == "ok":
             self._static_bumps = 0
-            # rays from every sub-cell walked spare looks from beside (agent.ormstc_looks)
+            # rays from every sub-cell walked spare looks from beside (agent.ormstc.looks)
             await glance(self.body, self.sonar, self.may_hold_body)
             return True
         if reply.status != "bumped":

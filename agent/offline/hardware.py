@@ -7,7 +7,7 @@ before it counts as a hardware failure. A command refused because this robot's i
 is stale means the robot was declared dead: FencedError.
 
 Replies can be lost (a router restart drops queries in flight): the retry policy, shared
-with the ORMSTC agent, is agent.hw_link's (a motion is re-sent only if the pose shows it
+with the ORMSTC agent, is agent.core.hw_link's (a motion is re-sent only if the pose shows it
 was not done).
 """
 
@@ -17,8 +17,8 @@ import asyncio
 import time
 from dataclasses import dataclass
 
-from agent.errors import HardwareError
-from agent.hw_link import DEFAULT_TIMEOUT_S, HwLink, NoReplyError, facing, standing_on
+from agent.core.errors import HardwareError
+from agent.core.hw_link import DEFAULT_TIMEOUT_S, HwLink, NoReplyError, facing, standing_on
 from bus.bridge import Bus
 from bus.messages import HwAction, HwReply, Pose
 from planner.types import SubCell
