@@ -20,6 +20,7 @@ import asyncio
 import time
 from collections.abc import Callable
 
+from agent.core.config import DEFAULT_HW_TIMEOUT
 from agent.core.errors import FencedError, HardwareError
 from bus import keys
 from bus.bridge import Bus
@@ -27,7 +28,7 @@ from bus.messages import HwAction, HwCommand, HwReply, Pose, Sensor
 
 POLL_S = 0.2  # pause between attempts while simhw (or the router) does not answer
 ATTEMPT_S = 5.0  # longest wait for one reply (a motion lasts ~2 sim seconds)
-DEFAULT_TIMEOUT_S = 60.0
+DEFAULT_TIMEOUT_S = DEFAULT_HW_TIMEOUT
 
 
 class NoReplyError(HardwareError):

@@ -20,19 +20,17 @@ machine; once it reports Done and every other robot is done or dead, linger and 
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import contextlib
-import sys
-import time
-from collections.abc import Callable
-from typing import Any
 
-from agent.core.errors import GatherTimeoutError, HardwareError
-from agent.core.lifecycle import AgentLife, run_agent
+from agent.core.config import AgentConfig
+from agent.core.errors import HardwareError
+from agent.core.gather import BodyAgent
+from agent.core.hw_link import HwLink
+from agent.core.lifecycle import run_agent
 from agent.ormstc.body import Body, look
 from agent.ormstc.looks import MarkedSteps, glance
-from agent.ormstc.options import OrmstcConfig, ormstc_config_from_args
+from agent.ormstc.options import OrmstcOptions
 from agent.ormstc.sensing import (
     HEADING_DELTA,
     SonarMap,
@@ -40,19 +38,16 @@ from agent.ormstc.sensing import (
 )
 from agent.ormstc.wire import WIRE_TYPES, Inbound, Rejoin, TreeBook, key_for, to_wire
 from bus import keys
-from bus.announce import Announcer
 from bus.bridge import BoundedFifo, Bus, LatestWins
 from bus.codec import encode
-from bus.config import settings_from_args
-from bus.liveness import HeartbeatInfo, LivelinessService
+from bus.config import ConnectionSettings
+from bus.liveness import HeartbeatInfo
 from bus.messages import (
     AgentState,
     DeathNotice,
-    EventKind,
     Heartbeat,
     LookStep,
     OrmstcWire,
-    RobotEvent,
     RobotStatus,
 )
 from planner.ormstc.conflicts import restate
@@ -80,26 +75,12 @@ ALGO = "ormstc"
 STATIC_BUMPS = 3  # bumps into an obstacle (not a body) before the move is hopeless
 
 
-class _StateAnnouncer(Announcer):
-    """The bus Announcer plus the agent's AgentState in every state reply."""
-
-    def __init__(self, bus: Bus, key: str, period: float,
-                 state: Callable[[], AgentState]) -> None:
-        super().__init__(bus, key, period=period)
-        self._state_message = state
-
-    def messages(self) -> list[Any]:
-        return [*super().messages(), self._state_message()]
-
-
-class OrmstcAgent(AgentLife):
+class OrmstcAgent(BodyAgent):
     """One ORMSTC robot process. ``await agent.run(settings)`` returns the exit code."""
 
-    def __init__(self, config: OrmstcConfig) -> None:
-        self.config = config
-        self.robot = config.robot
-        self.incarnation = config.incarnation
-        self.stop = asyncio.Event()
+    def __init__(self, config: AgentConfig, options: OrmstcOptions) -> None:
+        super().__init__(config)
+        self.options = options
         self.news = asyncio.Event()
         self.machine: OrmstcMachine | None = None
         self.sonar = SonarMap()
@@ -107,36 +88,23 @@ class OrmstcAgent(AgentLife):
         self.statuses: dict[int, RobotStatus] = {}
         self.dead: set[int] = set()
         self.peer_cells: dict[int, Cell] = {}  # last heartbeat pose of each peer
-        self.start: SubCell | None = None
         self.state = "starting"
         self.sent = 0
         self.sent_bytes = 0
-        self.error = ""
         self._static_bumps = 0
-        self._t0 = time.monotonic()
         self.book = TreeBook()
         # a peer silent this long was cut off: restate (docs/ormstc.md, "Router restarts")
         self.rejoin = Rejoin(silence=max(1.0, 5 * config.heartbeat_period))
 
     # --- plumbing -------------------------------------------------------------------------
 
-    def now(self) -> float:
-        return time.monotonic() - self._t0
-
-    def _say(self, text: str) -> None:
-        print(f"agent {self.robot}: {text} [{self.now():.2f} s]", flush=True)
-
     def _wire(self, bus: Bus) -> None:
         c, m = self.config, bus.mission
-        self.bus = bus
         self.body = Body(bus, self.robot, c.incarnation, c.hw_timeout)
         self.looking = MarkedSteps(self.body, self._look_step)
         self.inbound = Inbound(self.robot, c.k, bus.drops)
-        self.liveness = LivelinessService(
-            bus, self.robot, c.incarnation, heartbeat_period=c.heartbeat_period,
-            timeout=c.dead_after, info=self._heartbeat_info, on_death=self._on_death)
-        self.announcer = _StateAnnouncer(bus, keys.state(m, self.robot), c.announce_period,
-                                         self.state_message)
+        self.liveness = self._make_liveness(bus, self._on_death, self._heartbeat_info)
+        self.announcer = self._make_announcer(bus, self.state_message)
         bus.subscribe(keys.all_ormstc(m), WIRE_TYPES, self._on_ormstc, BoundedFifo(65536))
         bus.subscribe(keys.all_statuses(m), RobotStatus, self._on_status, LatestWins())
         bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
@@ -197,10 +165,6 @@ class OrmstcAgent(AgentLife):
             self.announcer.set(keys.status(self.bus.mission, self.robot), RobotStatus(
                 self.robot, self.config.incarnation, self.start, ALGO, "", state, message))
 
-    def _event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
-        self.bus.publish(keys.events(self.bus.mission, self.robot), RobotEvent(
-            self.robot, self.config.incarnation, kind, subject, detail))
-
     def _broadcast(self, request: Broadcast) -> None:
         self.book.sent(self._publish(request.message))
         if isinstance(request.message, DeadRobotMsg):  # for monitors and mstc up's summary
@@ -229,7 +193,7 @@ class OrmstcAgent(AgentLife):
     # --- requests -------------------------------------------------------------------------
 
     async def sense(self, request: Sense) -> SenseResult:
-        return await look(self.looking, self.sonar, request, self.config.sense_mode,
+        return await look(self.looking, self.sonar, request, self.options.sense_mode,
                           self.may_hold_body)
 
     def _look_step(self, seq: int, cell: SubCell) -> None:
@@ -265,24 +229,16 @@ class OrmstcAgent(AgentLife):
 
     # --- the mission ----------------------------------------------------------------------
 
-    async def _gather(self) -> None:
-        pose = await self.body.wait_for_pose(self.config.start_timeout)
-        self.start = (pose[0], pose[1])
-        self._status("gathering")
-        self._say(f"body at {self.start}, gathering")
-        missing = self._not_announced
-        try:
-            async with asyncio.timeout(self.config.start_timeout):
-                while missing():
-                    self.news.clear()
-                    with contextlib.suppress(TimeoutError):
-                        async with asyncio.timeout(self.config.announce_period):
-                            await self.news.wait()
-        except TimeoutError:
-            raise GatherTimeoutError(f"robots {missing()} did not announce themselves within "
-                                     f"{self.config.start_timeout:g} s") from None
+    def _link(self) -> HwLink:
+        return self.body.link
 
-    def _not_announced(self) -> list[int]:
+    async def _wait_news(self) -> None:
+        self.news.clear()
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(self.config.announce_period):
+                await self.news.wait()
+
+    def _missing_starts(self) -> list[int]:
         return [r for r in range(self.config.k)
                 if r != self.robot and r not in self.statuses and r not in self.dead]
 
@@ -351,9 +307,8 @@ class OrmstcAgent(AgentLife):
             self._say("completion withdrawn")
 
     async def _mission(self) -> None:
-        await self._gather()
-        assert self.start is not None
-        self.machine = OrmstcMachine(self.config.machine(self.start))
+        start = await self._gather_starts()
+        self.machine = OrmstcMachine(self.options.machine(self.config, start))
         self._status("covering")
         self._event("started")
         self._say("driving")
@@ -364,11 +319,6 @@ class OrmstcAgent(AgentLife):
                   f"{self.inbound.repeats} repeats heard")
 
 
-def run_ormstc(args: argparse.Namespace) -> int:
-    """``mstc agent --algo ormstc``: exit codes as for the other algorithms (agent/main.py)."""
-    config = ormstc_config_from_args(args)
-    if config.robot >= config.k:
-        print(f"mstc agent: error: --id {config.robot} is not below --robots {config.k}",
-              file=sys.stderr)
-        return 2
-    return run_agent(OrmstcAgent(config), settings_from_args(args))
+def drive(config: AgentConfig, options: OrmstcOptions, settings: ConnectionSettings) -> int:
+    """Run one ORMSTC robot to its end; the process exit code (agent/main.py)."""
+    return run_agent(OrmstcAgent(config, options), settings)
