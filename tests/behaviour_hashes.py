@@ -31,9 +31,9 @@ def _plans() -> Iterator[tuple[str, object]]:
     from planner.balanced.takeover import simulate_failures as balanced_failures
     from planner.grid import cell_of, work_area
     from planner.maps import resolve_world
-    from planner.pipeline import make_plan
+    from planner.offline.lockstep import simulate_failures
+    from planner.offline.plan import make_plan
     from planner.placement import random_starts
-    from planner.takeover import simulate_failures
     from planner.trees import build_tree
 
     for world in WORLDS:
@@ -60,8 +60,8 @@ def _plans() -> Iterator[tuple[str, object]]:
 
 def _ormstc() -> Iterator[tuple[str, object]]:
     from planner.maps import resolve_world
+    from planner.ormstc.lockstep import SimConfig, simulate
     from planner.placement import random_starts
-    from simhw.lockstep import SimConfig, simulate
 
     for world in WORLDS:
         grid = resolve_world(world, None)

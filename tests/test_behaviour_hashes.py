@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 
 import pytest
-
 from behaviour_hashes import GOLDEN, compute
 
 pytestmark = pytest.mark.slow

@@ -19,6 +19,7 @@ from test_ormstc_sim import random_starts, random_world
 
 from planner.ormstc.conflicts import restate, winner_of
 from planner.ormstc.knowledge import Knowledge
+from planner.ormstc.lockstep import LockstepSim, SimConfig, SimResult
 from planner.ormstc.machine import OrmstcMachine
 from planner.ormstc.types import (
     Cell,
@@ -37,7 +38,6 @@ from planner.ormstc.types import (
     TreeEdgeMsg,
 )
 from planner.ormstc.walk import cell_of
-from simhw.lockstep import LockstepSim, SimConfig, SimResult
 
 FAR: SubCell = (200, 200)  # the peer's start: far from everything the machine sees
 

@@ -8,7 +8,7 @@ from planner.balanced.coverage import region_path
 from planner.balanced.regions import plan_regions
 from planner.cycle import stc_cycle
 from planner.grid import WorkArea
-from planner.pipeline import make_plan
+from planner.offline.plan import make_plan
 from planner.trees import build_tree
 from planner.types import Plan, RobotPlan
 

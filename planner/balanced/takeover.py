@@ -1,6 +1,6 @@
 """Robustness of balanced plans: a dead robot's region is finished by a live robot.
 
-Pure discrete-time semantics in the style of planner.takeover (paper 003, Alg. 2), for plans
+Pure discrete-time semantics in the style of planner.offline (paper 003, Alg. 2), for plans
 whose robots walk their own regions rather than legs of one cycle. Robots form a ring in the
 order of their starts along ``plan.cycle``. A live robot that has finished its walk watches
 its successor; once the successor is known dead (``detection_delay`` steps after it failed)
@@ -20,7 +20,7 @@ import numpy as np
 
 from planner.errors import UnsupportedPlanError
 from planner.invariants import InvariantViolation, check_path_moves
-from planner.takeover import Takeover, TakeoverResult
+from planner.offline.lockstep import Takeover, TakeoverResult
 from planner.types import BoolArray, IntArray, Plan, SubCell
 
 _NEVER = 1 << 62

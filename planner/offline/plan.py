@@ -10,7 +10,7 @@ from planner.allocation import allocate
 from planner.cycle import stc_cycle
 from planner.errors import RobotPlacementError
 from planner.grid import WorkArea
-from planner.plan_builder import build_plan
+from planner.offline.build import build_plan
 from planner.types import Plan, SpanningTree
 
 
