@@ -9,7 +9,8 @@ from typing import Any
 
 from bus.argtypes import positive_int
 from deploy.cli import UsageError
-from planner.grid import cell_of, work_area
+from planner.geometry import cell_of
+from planner.grid import work_area
 from planner.maps import resolve_world
 from planner.metrics import PlanMetrics, plan_metrics
 from planner.offline.plan import make_plan

@@ -29,7 +29,8 @@ from deploy.fleet import (
     usage_errors_as_lines,
 )
 from deploy.summary import reachable_sub_cells
-from planner.grid import cell_of, coarsen, validate_starts, work_area
+from planner.geometry import cell_of
+from planner.grid import coarsen, validate_starts, work_area
 from planner.maps import resolve_world
 from planner.offline.plan import make_plan
 from planner.placement import parse_starts, random_starts

@@ -29,7 +29,8 @@ def _plans() -> Iterator[tuple[str, object]]:
     from planner.allocation import ALGORITHMS
     from planner.balanced.plan import balanced_plan
     from planner.balanced.takeover import simulate_failures as balanced_failures
-    from planner.grid import cell_of, work_area
+    from planner.geometry import cell_of
+    from planner.grid import work_area
     from planner.maps import resolve_world
     from planner.offline.lockstep import simulate_failures
     from planner.offline.plan import make_plan

@@ -13,8 +13,7 @@ from dataclasses import dataclass
 from enum import Enum
 from typing import Protocol
 
-Cell = tuple[int, int]
-SubCell = tuple[int, int]
+from planner.geometry import Cell, SubCell
 
 
 class SenseMode(Enum):
