@@ -9,12 +9,12 @@ tick the machine while it has nothing else to say. Nothing assumes lockstep deli
 messages may come late and in any order across senders (FIFO per sender is assumed).
 
 The algorithm is written as one generator (the recursive DFS of Alg. 2 unrolled into the STC
-walk around the growing tree); ``step`` resumes it when what it waits for has arrived. A driver
-that knows the ground truth (the lockstep simulator) may pass ``instant`` answers: sensing and
-liveness are then asked through it inside ``step`` instead of as Sense / IsAlive requests,
-which is the same as answering those requests at once, minus a round trip per question.
-Lines 21-36 (completion, watching, takeover) are in planner/ormstc/watch.py, the
-resolution of two live owners of one cell in planner/ormstc/conflicts.py.
+walk around the growing tree); ``step`` resumes it when what it waits for has arrived. Every
+driver answers the same Sense / IsAlive requests — the lockstep simulator from its ground
+truth within the step, the agent from simhw and its peer table — so the papers' figures and
+the fleet run one sensing path. Lines 21-36 (completion, watching, takeover) are in
+planner/ormstc/watch.py, the resolution of two live owners of one cell in
+planner/ormstc/conflicts.py.
 """
 
 from __future__ import annotations
@@ -35,7 +35,6 @@ from planner.ormstc.types import (
     ConnectionMsg,
     DeadRobotMsg,
     Event,
-    InstantAnswers,
     IsAlive,
     MachineConfig,
     Message,
@@ -62,9 +61,8 @@ _HEADING = {delta: side for side, delta in enumerate(DELTA)}
 class OrmstcMachine:
     """One robot's ORMSTC controller. Public state is read-only for drivers and tests."""
 
-    def __init__(self, config: MachineConfig, instant: InstantAnswers | None = None) -> None:
+    def __init__(self, config: MachineConfig) -> None:
         self.config = config
-        self.instant = instant
         self.me = config.robot
         # a claim heard at t is decided by t + wait and its edge heard by t + wait + D, with
         # D <= (wait + 1) / 2; 2 wait + 1 is past both
@@ -254,19 +252,16 @@ class OrmstcMachine:
         know = self.know
         if other in self.mine or other in know.obstacle or cell in self.ceded:
             return None  # a ceded cell's neighbours are its new owner's to decide
-        instant = self.instant
         if other in know.owners:
             holder = know.live_owner(other)
             if holder is not None:
-                alive = (self.alive_now(holder, instant) if instant is not None
-                         else (yield from self.ask_alive(holder)))
+                alive = yield from self.ask_alive(holder)
                 if alive:
                     self._connect(holder, cell, other)
                     return None
             for robot in know.dead_owners(other):
                 self.release(robot)  # lines 12-14: a dead robot's cell is empty again
-        status = (self._sense_now(cell, side, other, instant) if instant is not None
-                  else (yield from self._sense(cell, side, other)))
+        status = yield from self._sense(cell, side, other)
         if status is CellStatus.OBSTACLE:
             return None
         if status is CellStatus.ROBOT:
@@ -277,8 +272,7 @@ class OrmstcMachine:
         won = yield from self._claim(cell, other)
         if won and know.was_owned(other):
             # its owner may have died inside it while we waited: look again before entering
-            status = (self._sense_now(cell, side, other, instant) if instant is not None
-                      else (yield from self._sense(cell, side, other)))
+            status = yield from self._sense(cell, side, other)
             won = status is CellStatus.FREE
         if won:
             self._grow(cell, side)
@@ -344,15 +338,6 @@ class OrmstcMachine:
         result = yield (_ANSWER, Sense(cells, turn))
         return self._sensed(target, result.statuses if isinstance(result, SenseResult) else ())
 
-    def _sense_now(self, cell: Cell, side: int, target: Cell,
-                   instant: InstantAnswers) -> CellStatus:
-        """``_sense`` answered by ``instant``, without a generator frame."""
-        if target not in self.know.owners and target in self.know.free:
-            return CellStatus.FREE
-        cells = self._look(cell, side, target)[0]
-        look = instant.cell_status
-        return self._sensed(target, [(c, look(c)) for c in cells])
-
     def _look(self, cell: Cell, side: int, target: Cell) -> tuple[tuple[Cell, ...], bool]:
         """The cells to sense for ``target`` and whether the robot must turn to see it."""
         if self.config.sense_mode is SenseMode.SINGLE:
@@ -390,8 +375,6 @@ class OrmstcMachine:
         return self.config.bump_backoff * (1.0 + self._rng.random())
 
     def ask_alive(self, robot: int) -> Flow:
-        if self.instant is not None:
-            return self.alive_now(robot, self.instant)
         if robot in self.know.dead:
             return False
         result = yield (_ANSWER, IsAlive(robot))
@@ -399,13 +382,3 @@ class OrmstcMachine:
         if not alive:
             self.know.mark_dead(robot)
         return alive
-
-    def alive_now(self, robot: int, instant: InstantAnswers) -> bool:
-        """``ask_alive`` answered by ``instant``, without a generator frame."""
-        if robot in self.know.dead:
-            return False
-        alive = instant.is_alive(robot)
-        if not alive:
-            self.know.mark_dead(robot)
-        return alive
-

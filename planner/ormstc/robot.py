@@ -15,7 +15,7 @@ from typing import Protocol
 
 from planner.ormstc.connections import Connections
 from planner.ormstc.knowledge import Knowledge
-from planner.ormstc.types import Cell, InstantAnswers, MachineConfig, Message, Request, SubCell
+from planner.ormstc.types import Cell, MachineConfig, Message, Request, SubCell
 
 # wait kinds of a yielded action: an answer, a time, a time or a change of knowledge, the end
 ANSWER, UNTIL, WAKE, FINISHED = 0, 1, 2, 3
@@ -25,7 +25,6 @@ Flow = Generator[Action, object, object]
 
 class Robot(Protocol):
     config: MachineConfig
-    instant: InstantAnswers | None
     me: int
     know: Knowledge
     connections: Connections
@@ -61,5 +60,3 @@ class Robot(Protocol):
     def move_to(self, to: SubCell) -> Flow: ...
 
     def ask_alive(self, robot: int) -> Flow: ...
-
-    def alive_now(self, robot: int, instant: InstantAnswers) -> bool: ...

@@ -43,10 +43,7 @@ def watch(m: Robot) -> Flow:
             if m.now >= next_poll:
                 next_poll = m.now + m.config.watch_interval
                 for robot in sorted(table.holders() - know.dead):
-                    if m.instant is not None:
-                        m.alive_now(robot, m.instant)
-                    else:
-                        yield from m.ask_alive(robot)
+                    yield from m.ask_alive(robot)
                 continue
             yield (WAKE, min(next_poll, retry_at))
             continue
