@@ -1,18 +1,27 @@
-"""Offline MSTC robustness as pure discrete-time semantics: the lockstep replay of a plan.
+"""Offline robustness as pure discrete-time semantics: the lockstep replay of a plan.
 
 simulate_failures replays a plan in unit time steps with fail-stop robots, driving one
 OfflineRobot (planner.offline.machine) per robot with perfect knowledge. This is the oracle
-the distributed agents are tested against.
+the distributed agents are tested against. The time loop itself, :func:`replay`, is shared
+with every family whose robots walk a plan and take over dead robots' work (the balanced
+planner's robots, planner.balanced.machine): only the machines differ.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
-from planner.offline.machine import MoveTo, OfflineRobot, validate_replay
+from planner.offline.machine import (
+    MoveTo,
+    OfflineRobot,
+    RobotAction,
+    TakeoverDecision,
+    validate_replay,
+)
 from planner.types import BoolArray, IntArray, Plan, SubCell
 
 
@@ -71,88 +80,53 @@ def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
     the cycle, regions that do not tile the cycle, unknown robots or negative times.
     """
     validate_replay(plan, failures, detection_delay)
-    return _Simulation(plan, failures, detection_delay).run()
+    ids = [rp.robot for rp in plan.robots]
+    cycle = plan.cycle
+    shape = cycle.index.shape
+    on = cycle.index >= 0
+    machines = [OfflineRobot(plan, robot) for robot in ids]
+    replayed = replay(machines, ids, [rp.start_index for rp in plan.robots], failures,
+                      detection_delay, cycle.n, cycle.at)
+
+    def spread(values: IntArray, fill: int) -> IntArray:
+        out = np.full(shape, fill, dtype=np.int64)
+        out[on] = values[cycle.index[on]]
+        return out
+
+    return replayed.result(spread)
 
 
-class _Simulation:
-    """Lockstep driver of one OfflineRobot per plan robot; indices are positions in
-    plan.robots unless named id. Every machine hears every arrival (perfect knowledge)."""
+class ReplayRobot(Protocol):
+    """What the shared time loop asks of a robot's machine. Places are integer keys (a cycle
+    index, a flat sub-cell index): the loop keeps its counts in arrays indexed by them."""
 
-    def __init__(self, plan: Plan, failures: Mapping[int, int], delay: int) -> None:
-        self.cycle = plan.cycle
-        n = plan.cycle.n
-        self.ids = [rp.robot for rp in plan.robots]
-        self.delay = delay
-        never = 1 << 62
-        self.fail = [failures.get(robot, never) for robot in self.ids]
-        self.machines = [OfflineRobot(plan, robot) for robot in self.ids]
-        self.announced: set[int] = set()
-        self.walks: list[list[SubCell]] = [[] for _ in self.ids]
-        self.visits = np.zeros(n, dtype=np.int64)
-        self.first_robot = np.full(n, -1, dtype=np.int64)
-        self.first_time = np.full(n, -1, dtype=np.int64)
-        self.uncovered = n
-        self.takeovers: list[Takeover] = []
-        for i, rp in enumerate(plan.robots):
-            self._arrive(i, rp.start_index, 0)
+    def on_covered(self, key: int) -> None: ...
 
-    def _arrive(self, i: int, index: int, time: int) -> None:
-        self.walks[i].append(self.cycle.at(index))
-        if self.visits[index] == 0:
-            self.first_robot[index] = self.ids[i]
-            self.first_time[index] = time
-            self.uncovered -= 1
-        self.visits[index] += 1
-        for machine in self.machines:
-            machine.on_covered(index)
+    def on_dead(self, robot: int) -> None: ...
 
-    def _announce_deaths(self, time: int) -> None:
-        for i, fail in enumerate(self.fail):
-            if i not in self.announced and fail + self.delay <= time:
-                self.announced.add(i)
-                for machine in self.machines:
-                    machine.on_dead(self.ids[i])
+    def on_moved(self) -> int: ...
 
-    def _next_detection(self, time: int) -> int | None:
-        later = [f + self.delay for f in self.fail if time < f + self.delay < (1 << 62)]
-        return min(later, default=None)
+    def next_action(self) -> RobotAction: ...
 
-    def run(self) -> TakeoverResult:
-        time = 0
-        while True:
-            self._announce_deaths(time)
-            movers = []
-            for i, machine in enumerate(self.machines):
-                if self.fail[i] <= time:
-                    continue
-                action = machine.next_action()
-                self.takeovers.extend(Takeover(self.ids[i], d.dead, time)
-                                      for d in machine.pop_decisions())
-                if isinstance(action, MoveTo):
-                    movers.append(i)
-            if movers:
-                for i in movers:
-                    self._arrive(i, self.machines[i].on_moved(), time + 1)
-                time += 1
-                continue
-            if self.uncovered == 0:
-                break
-            # Nobody can move until a failure becomes known: jump straight there.
-            detection = self._next_detection(time)
-            if detection is None:
-                break
-            time = detection
-        return self._result()
+    def pop_decisions(self) -> list[TakeoverDecision]: ...
 
-    def _result(self) -> TakeoverResult:
-        shape = self.cycle.index.shape
-        on = self.cycle.index >= 0
 
-        def spread(values: IntArray, fill: int) -> IntArray:
-            out = np.full(shape, fill, dtype=np.int64)
-            out[on] = values[self.cycle.index[on]]
-            return out
+_NEVER = 1 << 62
 
+
+@dataclass
+class Replayed:
+    """Counts of one replay in key space; ``result`` spreads them to the grid."""
+
+    ids: list[int]
+    walks: list[list[SubCell]]
+    visits: IntArray
+    first_robot: IntArray
+    first_time: IntArray
+    takeovers: list[Takeover]
+    uncovered: int
+
+    def result(self, spread: Callable[[IntArray, int], IntArray]) -> TakeoverResult:
         complete = self.uncovered == 0
         return TakeoverResult(
             robots=tuple(self.ids),
@@ -164,3 +138,59 @@ class _Simulation:
             coverage_time=int(self.first_time.max()) if complete else None,
             complete=complete,
         )
+
+
+def replay(machines: Sequence[ReplayRobot], ids: Sequence[int], starts: Sequence[int],
+           failures: Mapping[int, int], delay: int, size: int,
+           sub_of: Callable[[int], SubCell]) -> Replayed:
+    """Unit-time lockstep of ``machines`` (positions in ``ids`` order) over ``size`` places.
+
+    Robot ``ids[i]`` dies after ``failures[ids[i]]`` moves and is known dead ``delay`` steps
+    later; every machine hears every arrival (perfect knowledge). When nobody can move until
+    a failure becomes known, time jumps straight there.
+    """
+    fail = [failures.get(robot, _NEVER) for robot in ids]
+    out = Replayed(list(ids), [[] for _ in ids], np.zeros(size, dtype=np.int64),
+                   np.full(size, -1, dtype=np.int64), np.full(size, -1, dtype=np.int64),
+                   [], size)
+
+    def arrive(i: int, key: int, time: int) -> None:
+        out.walks[i].append(sub_of(key))
+        if out.visits[key] == 0:
+            out.first_robot[key] = ids[i]
+            out.first_time[key] = time
+            out.uncovered -= 1
+        out.visits[key] += 1
+        for machine in machines:
+            machine.on_covered(key)
+
+    for i, key in enumerate(starts):
+        arrive(i, key, 0)
+    announced: set[int] = set()
+    time = 0
+    while True:
+        for i, at in enumerate(fail):
+            if i not in announced and at + delay <= time:
+                announced.add(i)
+                for machine in machines:
+                    machine.on_dead(ids[i])
+        movers = []
+        for i, machine in enumerate(machines):
+            if fail[i] <= time:
+                continue
+            action = machine.next_action()
+            out.takeovers.extend(Takeover(ids[i], d.dead, time) for d in machine.pop_decisions())
+            if isinstance(action, MoveTo):
+                movers.append(i)
+        if movers:
+            for i in movers:
+                arrive(i, machines[i].on_moved(), time + 1)
+            time += 1
+            continue
+        if out.uncovered == 0:
+            break
+        later = [at + delay for at in fail if time < at + delay < _NEVER]
+        if not later:
+            break
+        time = min(later)
+    return out
