@@ -29,9 +29,10 @@ from deploy.fleet import (
     usage_errors_as_lines,
 )
 from deploy.summary import reachable_sub_cells
-from planner.grid import cell_of, coarsen, validate_starts, work_area
+from planner.geometry import cell_of
+from planner.grid import coarsen, validate_starts, work_area
 from planner.maps import resolve_world
-from planner.pipeline import make_plan
+from planner.offline.plan import make_plan
 from planner.placement import parse_starts, random_starts
 from planner.trees import ALL_TREE_KINDS, build_tree
 from planner.types import BoolArray, OccupancyGrid, SubCell
@@ -127,7 +128,7 @@ class MissionSetup:
             # ORMSTC plans nothing (its agents get no map); the lockstep simulator's coverage
             # time on the same world and starts stands in for the planned makespan, and it
             # rejects two robots in one cell before any process starts.
-            from simhw.lockstep import simulate
+            from planner.ormstc.lockstep import simulate
 
             planned = simulate(grid, starts).makespan
         else:

@@ -29,7 +29,7 @@ from bus.messages import (
 )
 from planner.errors import PlannerError
 from planner.invariants import check_path_moves
-from planner.takeover import Finished, MoveTo, OfflineRobot, WaitFor
+from planner.offline.machine import Finished, MoveTo, OfflineRobot, WaitFor
 from planner.types import OccupancyGrid, Plan, SubCell
 from simhw.clock import FastClock
 from simhw.dead_bodies import on_death

@@ -22,7 +22,7 @@ from bus.messages import (
     RobotStatus,
     unpack_covered,
 )
-from planner.takeover import OfflineRobot
+from planner.offline.machine import OfflineRobot
 from planner.types import SubCell
 
 
