@@ -52,15 +52,8 @@ def add_identity_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_life_arguments(parser: argparse.ArgumentParser) -> None:
     """The options every family reads (``--algo`` and ``--tree`` are the entry's)."""
-    parser.add_argument("--seed", type=int, default=0,
-                        help="seed of the family's random choices: the spanning tree "
-                             "(offline), the machine's (ormstc); default 0")
     parser.add_argument("--incarnation", type=positive_int, default=1, metavar="N",
                         help="this life's number; a restart must use a higher one (default 1)")
-    parser.add_argument("--start-timeout", type=positive, default=DEFAULT_START_TIMEOUT,
-                        metavar="SECONDS",
-                        help="how long to wait for simhw, every start and every plan digest "
-                             "(default %(default)s)")
     parser.add_argument("--heartbeat-period", type=positive, default=DEFAULT_HEARTBEAT_PERIOD,
                         metavar="SECONDS",
                         help="seconds between heartbeats (default %(default)s)")
@@ -71,23 +64,38 @@ def add_life_arguments(parser: argparse.ArgumentParser) -> None:
                         metavar="SECONDS",
                         help="re-announce state and re-query peers this often "
                              "(default %(default)s)")
-    parser.add_argument("--hw-timeout", type=positive, default=DEFAULT_HW_TIMEOUT,
-                        metavar="SECONDS",
-                        help="longest wait for one motion of the body, lost replies and "
-                             "re-tries included (default %(default)s)")
-    parser.add_argument("--linger", type=non_negative, default=DEFAULT_LINGER,
-                        metavar="SECONDS",
-                        help="stay after completion so peers can still query (default "
-                             "%(default)s)")
+
+
+def add_body_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of the families whose robots have a simhw body (offline, ormstc)."""
+    group = parser.add_argument_group("robots with a simhw body (offline, ormstc)")
+    group.add_argument("--seed", type=int, default=0,
+                       help="seed of the family's random choices: the spanning tree "
+                            "(offline), the machine's (ormstc); default 0")
+    group.add_argument("--start-timeout", type=positive, default=DEFAULT_START_TIMEOUT,
+                       metavar="SECONDS",
+                       help="how long to wait for simhw, every start and every plan digest "
+                            "(default %(default)s)")
+    group.add_argument("--hw-timeout", type=positive, default=DEFAULT_HW_TIMEOUT,
+                       metavar="SECONDS",
+                       help="longest wait for one motion of the body, lost replies and "
+                            "re-tries included (default %(default)s)")
+    group.add_argument("--linger", type=non_negative, default=DEFAULT_LINGER,
+                       metavar="SECONDS",
+                       help="stay after completion so peers can still query (default "
+                            "%(default)s)")
 
 
 def config_from_args(args: argparse.Namespace) -> AgentConfig:
-    """The AgentConfig of parsed options; ConfigError for an id outside the fleet."""
+    """The AgentConfig of parsed options; ConfigError for an id outside the fleet. A command
+    without the body options (``mstc tree-agent``) leaves their defaults."""
     if args.id >= args.robots:
         raise ConfigError(f"--id {args.id} is not below --robots {args.robots}")
+    body = vars(args)
     return AgentConfig(
         robot=args.id, k=args.robots, algo=args.algo, incarnation=args.incarnation,
-        seed=args.seed, start_timeout=args.start_timeout,
+        seed=body.get("seed", 0), start_timeout=body.get("start_timeout", DEFAULT_START_TIMEOUT),
         heartbeat_period=args.heartbeat_period, dead_after=args.dead_after,
-        announce_period=args.announce_period, hw_timeout=args.hw_timeout,
-        linger=args.linger)
+        announce_period=args.announce_period,
+        hw_timeout=body.get("hw_timeout", DEFAULT_HW_TIMEOUT),
+        linger=body.get("linger", DEFAULT_LINGER))

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from agent.core.errors import ConfigError
 from bus.argtypes import positive_int
+from planner.algorithms import Family, names
 from planner.trees import ALL_TREE_KINDS
 
 DEFAULT_TREE = "dfs"
@@ -23,7 +24,8 @@ class OfflineOptions:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    group = parser.add_argument_group("offline MSTC")
+    algos = "|".join(names(Family.OFFLINE, fleet=True))
+    group = parser.add_argument_group(f"offline MSTC (--algo {algos})")
     group.add_argument("--world", metavar="FILE|NAME",
                        help="map file or builtin world name: the a-priori map of the offline "
                             "algorithms (required for them)")

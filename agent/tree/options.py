@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from agent.core.errors import ConfigError
 from bus.argtypes import positive
+from planner.algorithms import Family, names
 
 DEFAULT_STEP_TIMEOUT = 10.0
 DEFAULT_SETTLE = 1.0  # the longest a dead robot's last report may still be on its way
@@ -22,7 +23,8 @@ class TreeOptions:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    group = parser.add_argument_group("tree coverage")
+    algos = "|".join(names(Family.TREE, fleet=True))
+    group = parser.add_argument_group(f"tree coverage (--algo {algos})")
     group.add_argument("--step-timeout", type=positive, default=DEFAULT_STEP_TIMEOUT,
                        metavar="SECONDS",
                        help="longest wait for every report of one step (default %(default)s)")
