@@ -1,4 +1,5 @@
-"""The agent process: one robot's life from start-up to leaving, in one asyncio TaskGroup.
+"""The offline agent (``mstc agent --algo nb|bt|opt``): one robot's life from start-up to
+leaving, in one asyncio TaskGroup.
 
 Life cycle: read the start pose from the body, announce it (RobotStatus), gather every
 robot's start, compute the plan, announce its digest and compare the others', drive the plan
@@ -6,8 +7,9 @@ robot's start, compute the plan, announce its digest and compare the others', dr
 service (token, heartbeats, failure detector), the announcer (re-publishes status, known
 deaths and the mission verdict; answers state queries) and three watchers that end the group
 with a specific exception: own death notice (FencedError), SIGTERM/SIGINT (LeaveRequested),
-a peer's "failed" verdict (MissionFailedError). That process frame is agent.core.lifecycle's,
-shared with the ORMSTC agent; this module adds the offline mission and the third watcher.
+a peer's "failed" verdict (MissionFailedError). The process frame is agent.core.lifecycle's
+and the gather agent.core.gather's, shared with the other families; this module adds the
+offline mission and the third watcher.
 """
 
 from __future__ import annotations

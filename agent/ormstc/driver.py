@@ -1,7 +1,7 @@
 """``mstc agent --algo ormstc``: drive one robot's OrmstcMachine with simhw's body and the bus.
 
 The machine (planner.ormstc) decides everything; this module carries its requests out, as
-simhw/lockstep.py does in-process:
+planner/ormstc/lockstep.py does in-process:
 
 - ``Sense`` -> sonar commands (agent.ormstc.body.look: which sonar, turning first when the
   cell is behind, a look from the sub-cell beside for a half never seen; ``--sense-mode
@@ -13,9 +13,10 @@ simhw/lockstep.py does in-process:
 - Peer messages and the liveness service's deaths become ``PeerMessage`` / ``PeerDied``;
   the machine is ticked with the monotonic clock in seconds (agent.ormstc.options says why).
 
-Life cycle: read the pose, announce a status ("gathering") once subscribed, wait until every
-robot has announced one (so nobody's StartMsg is published before a peer listens), run the
-machine; once it reports Done and every other robot is done or dead, linger and leave.
+Life cycle: the core's gather (agent.core.gather: read the pose, announce a status
+"gathering" once subscribed, wait until every robot has announced one, so nobody's StartMsg
+is published before a peer listens), run the machine; once it reports Done and every other
+robot is done or dead, linger and leave.
 """
 
 from __future__ import annotations
