@@ -1,7 +1,7 @@
 """The Zenoh wire of mstc-swarm (schema and rules: docs/protocol.md).
 
 keys      every key expression (no other module builds key strings)
-messages  frozen message dataclasses, registered by kind
+messages  frozen message dataclasses by subject (bus/messages/), registered by kind
 codec     strict, versioned msgpack encode/decode
 drops     DropCounter for malformed and overflowing messages
 qos       priority / congestion control per message kind

@@ -15,7 +15,6 @@ from typing import Any
 import zenoh
 
 from bus import messages as m
-from bus import tree_messages as tm
 
 
 @dataclass(frozen=True)
@@ -52,8 +51,8 @@ _BY_TYPE: dict[type[Any], Qos] = {
     # one priority for every ORMSTC kind keeps each sender's messages in order across keys
     **{t: CRITICAL for t in m.ORMSTC_MESSAGES},
     # a lost tree report stalls the whole team's step: never drop it under congestion
-    tm.TreeReport: CRITICAL,
-    tm.RadioStats: CONTROL,
+    m.TreeReport: CRITICAL,
+    m.RadioStats: CONTROL,
 }
 
 
