@@ -1,6 +1,7 @@
 """Wire messages: frozen dataclasses, one per kind, filed by subject.
 
-base       the registry of kinds, SCHEMA_VERSION, version_problem, the plain aliases
+schema     the table: every kind's class, key families, QoS class and wire generation
+base       the plain aliases (Pose, SubCell, Cell, SummaryValue)
 lifecycle  Heartbeat, RobotStatus (Hello), RobotEvent, DeathNotice, MissionStatus
 progress   Progress, LookStep, AgentState (with pack_covered / unpack_covered)
 hardware   HwCommand / HwReply, AdminCommand / AdminReply (the simulated hardware's API)
@@ -11,19 +12,7 @@ tree       TreeReport, RadioStats (connected tree coverage in the fleet)
 Every public name is re-exported here: import messages from ``bus.messages``.
 """
 
-from bus.messages.base import (
-    KIND_SINCE,
-    MESSAGE_TYPES,
-    RECORD_TYPES,
-    SCHEMA_VERSION,
-    Cell,
-    Pose,
-    SubCell,
-    SummaryValue,
-    message,
-    record,
-    version_problem,
-)
+from bus.messages.base import Cell, Pose, SubCell, SummaryValue
 from bus.messages.hardware import (
     AdminAction,
     AdminCommand,
@@ -58,6 +47,13 @@ from bus.messages.ormstc import (
     OrmstcWithdrawal,
 )
 from bus.messages.progress import AgentState, LookStep, Progress, pack_covered, unpack_covered
+from bus.messages.schema import (
+    KIND_SINCE,
+    MESSAGE_TYPES,
+    RECORD_TYPES,
+    SCHEMA_VERSION,
+    version_problem,
+)
 from bus.messages.tree import RadioStats, TreeReport
 from bus.messages.world import (
     NO_ROBOT,
@@ -83,6 +79,6 @@ __all__ = [
     "OrmstcDeadRobot", "OrmstcStart", "OrmstcTreeEdge", "OrmstcWire", "OrmstcWithdrawal",
     "Pose", "Progress", "RadioStats", "RobotArray", "RobotEvent", "RobotStateName",
     "RobotStatus", "RobotTruth", "Sensor", "SubCell", "SummaryValue", "TreeReport",
-    "WorldState", "make_world_state", "message", "pack_covered", "record", "unpack_covered",
+    "WorldState", "make_world_state", "pack_covered", "unpack_covered",
     "version_problem", "world_crossed", "world_first", "world_free", "world_visits",
 ]

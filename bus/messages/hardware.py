@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar, Literal
 
-from bus.messages.base import Pose, SummaryValue, message
+from bus.messages.base import Pose, SummaryValue
 
 HwAction = Literal["forward", "turn_left", "turn_right", "sense", "pose", "stop"]
 
@@ -14,7 +14,6 @@ Sensor = Literal["front", "left", "right"]
 HwStatus = Literal["ok", "bumped", "failed", "frozen", "rejected"]
 
 
-@message
 @dataclass(frozen=True)
 class HwCommand:
     KIND: ClassVar[str] = "hw_cmd"
@@ -25,7 +24,6 @@ class HwCommand:
     sensors: tuple[Sensor, ...] = ()
 
 
-@message
 @dataclass(frozen=True)
 class HwReply:
     """``odometry`` is (forward_m, turn_rad) since the last reply; sonar in sub-cells."""
@@ -45,7 +43,6 @@ class HwReply:
 AdminAction = Literal["fail", "freeze", "unfreeze", "status", "shutdown"]
 
 
-@message
 @dataclass(frozen=True)
 class AdminCommand:
     KIND: ClassVar[str] = "admin_cmd"
@@ -53,7 +50,6 @@ class AdminCommand:
     robot: int | None = None
 
 
-@message
 @dataclass(frozen=True)
 class AdminReply:
     KIND: ClassVar[str] = "admin_reply"

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar, Literal
 
-from bus.messages.base import Pose, SubCell, SummaryValue, message
+from bus.messages.base import Pose, SubCell, SummaryValue
 
 RobotStateName = str  # free text such as "starting", "covering", "done", "fenced"
 
@@ -15,7 +15,6 @@ EventKind = Literal[
 ]
 
 
-@message
 @dataclass(frozen=True)
 class Heartbeat:
     KIND: ClassVar[str] = "heartbeat"
@@ -27,7 +26,6 @@ class Heartbeat:
     sim_time: float
 
 
-@message
 @dataclass(frozen=True)
 class RobotStatus:
     """The hello a robot announces at start and re-announces periodically."""
@@ -45,7 +43,6 @@ class RobotStatus:
 Hello = RobotStatus
 
 
-@message
 @dataclass(frozen=True)
 class RobotEvent:
     KIND: ClassVar[str] = "event"
@@ -59,7 +56,6 @@ class RobotEvent:
 DeathReason = Literal["heartbeat", "token", "leaving"]
 
 
-@message
 @dataclass(frozen=True)
 class DeathNotice:
     """``robot``/``incarnation`` is the dead life; ``detected_at`` is the detector's clock."""
@@ -75,7 +71,6 @@ class DeathNotice:
 MissionState = Literal["running", "complete", "failed"]
 
 
-@message
 @dataclass(frozen=True)
 class MissionStatus:
     KIND: ClassVar[str] = "mission"

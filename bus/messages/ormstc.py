@@ -11,10 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from bus.messages.base import Cell, SubCell, message
+from bus.messages.base import Cell, SubCell
 
 
-@message
 @dataclass(frozen=True)
 class OrmstcStart:
     """Alg. 1: robot's start sub-cell; its cell is the robot's from now on."""
@@ -26,7 +25,6 @@ class OrmstcStart:
     sub: SubCell
 
 
-@message
 @dataclass(frozen=True)
 class OrmstcClaim:
     """Robot wants to grow into ``cell``; ``covered`` = cells it owns (FEWEST priority)."""
@@ -39,7 +37,6 @@ class OrmstcClaim:
     covered: int
 
 
-@message
 @dataclass(frozen=True)
 class OrmstcTreeEdge:
     """Robot built the tree edge ``parent`` -> ``child``: ``child`` is its cell."""
@@ -52,7 +49,6 @@ class OrmstcTreeEdge:
     child: Cell
 
 
-@message
 @dataclass(frozen=True)
 class OrmstcConnection:
     """Robot's cell ``mine`` borders ``theirs`` of robot ``peer`` (monitoring only)."""
@@ -66,7 +62,6 @@ class OrmstcConnection:
     theirs: Cell
 
 
-@message
 @dataclass(frozen=True)
 class OrmstcDeadRobot:
     """Robot found robot ``dead`` dead: its cells are free again."""
@@ -78,7 +73,6 @@ class OrmstcDeadRobot:
     dead: int
 
 
-@message
 @dataclass(frozen=True)
 class OrmstcCompletion:
     """Robot covered every cell it can reach (``cells`` of its own)."""
@@ -90,7 +84,6 @@ class OrmstcCompletion:
     cells: int
 
 
-@message
 @dataclass(frozen=True)
 class OrmstcWithdrawal:
     """Robot takes back its completion to cover cells robot ``peer`` no longer holds."""

@@ -9,10 +9,9 @@ from typing import ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from bus.messages.base import SubCell, message
+from bus.messages.base import SubCell
 
 
-@message
 @dataclass(frozen=True)
 class Progress:
     KIND: ClassVar[str] = "progress"
@@ -23,7 +22,6 @@ class Progress:
     sim_time: float
 
 
-@message
 @dataclass(frozen=True)
 class LookStep:
     """An ORMSTC robot stepped into ``cell`` (a sub-cell of its own cell) only to sense: the
@@ -37,7 +35,6 @@ class LookStep:
     cell: SubCell
 
 
-@message
 @dataclass(frozen=True)
 class AgentState:
     """An agent's re-learnable knowledge, the reply of its ``state/<r>`` queryable (never
@@ -48,7 +45,6 @@ class AgentState:
     offline algorithms the plan's tree kind and seed (so a monitor can rebuild the tree)."""
 
     KIND: ClassVar[str] = "agent_state"
-    SINCE: ClassVar[int] = 2
     robot: int
     incarnation: int
     state: str

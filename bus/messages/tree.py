@@ -9,10 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from bus.messages.base import message
 
-
-@message
 @dataclass(frozen=True)
 class TreeReport:
     """Robot ``robot`` stands on ``node`` at ``step``. ``sender`` is the robot transmitting
@@ -26,7 +23,6 @@ class TreeReport:
     knowledge of a death spreads with the reports (schema 3)."""
 
     KIND: ClassVar[str] = "tree_report"
-    SINCE: ClassVar[int] = 3
     robot: int
     incarnation: int
     step: int
@@ -36,7 +32,6 @@ class TreeReport:
     dead: tuple[int, ...] = ()
 
 
-@message
 @dataclass(frozen=True)
 class RadioStats:
     """The radio relay's counters, the reply of its ``tree/radio`` queryable.
@@ -48,7 +43,6 @@ class RadioStats:
     ``spoofed`` copies whose ``sender`` was not the outbox's robot (dropped)."""
 
     KIND: ClassVar[str] = "radio_stats"
-    SINCE: ClassVar[int] = 2
     transmissions: int
     deliveries: int
     refused: int

@@ -9,10 +9,9 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from bus.messages.base import Pose, SubCell, message, record
+from bus.messages.base import Pose, SubCell
 
 
-@message
 @dataclass(frozen=True)
 class GroundTruthPose:
     KIND: ClassVar[str] = "gt_pose"
@@ -21,7 +20,6 @@ class GroundTruthPose:
     sim_time: float
 
 
-@message
 @dataclass(frozen=True)
 class CoverEvent:
     """``visits`` is how many times ``cell`` (a sub-cell) has been covered, this one included."""
@@ -33,7 +31,6 @@ class CoverEvent:
     visits: int
 
 
-@message
 @dataclass(frozen=True)
 class BumpEvent:
     """``at`` is where the body stood, ``into`` the sub-cell it tried to enter."""
@@ -45,7 +42,6 @@ class BumpEvent:
     sim_time: float
 
 
-@record
 @dataclass(frozen=True)
 class RobotTruth:
     robot: int
@@ -59,7 +55,6 @@ class RobotTruth:
 NO_ROBOT = 255  # "nobody" in the packed per-sub-cell and per-edge robot arrays
 
 
-@message
 @dataclass(frozen=True)
 class WorldState:
     """The whole world for a monitor. ``free`` is numpy.packbits of the row-major free mask;
@@ -69,7 +64,6 @@ class WorldState:
     the ``right`` then the ``down`` array over cells (planner.types.SpanningTree's layout)."""
 
     KIND: ClassVar[str] = "world"
-    SINCE: ClassVar[int] = 2
     map_name: str
     shape: tuple[int, int]
     free: bytes
