@@ -54,6 +54,7 @@ from bus.messages.schema import (
     KeyFamily,
     Kind,
     QosClass,
+    _disjoint,
     family,
 )
 
@@ -172,6 +173,10 @@ def test_every_qos_class_has_zenoh_settings() -> None:
 def test_family_labels_drop_the_id_chunks_unless_given() -> None:
     assert family("hw/{robot}/cmd") == KeyFamily("hw/cmd", "hw/{robot}/cmd")
     assert family("tree/robot/{robot}/inbox", "tree/inbox").label == "tree/inbox"
+    # the schema's import-time check that no key is of two families
+    assert _disjoint(family("state/{robot}"), family("state/mission"))
+    assert _disjoint(family("hw/{robot}/cmd"), family("hw/admin"))
+    assert not _disjoint(family("a/{robot}"), family("a/{incarnation}", "b"))
 
 
 def test_build_needs_exactly_the_family_ids() -> None:

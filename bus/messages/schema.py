@@ -15,6 +15,7 @@ nested record dataclasses (listed in :data:`RECORDS`).
 from __future__ import annotations
 
 import enum
+import functools
 import re
 from dataclasses import dataclass
 from typing import Any
@@ -65,7 +66,7 @@ class KeyFamily:
     label: str
     path: str
 
-    @property
+    @functools.cached_property
     def chunks(self) -> tuple[str, ...]:
         return tuple(self.path.split("/"))
 
@@ -172,8 +173,9 @@ def _registry() -> dict[str, type[Any]]:
         name = kind.type.__dict__.get("KIND")
         if not isinstance(name, str) or not name:
             raise TypeError(f"{kind.type.__name__} needs a non-empty KIND class variable")
-        if types.setdefault(name, kind.type) is not kind.type:
+        if name in types:
             raise TypeError(f"message kind {name!r} listed twice")
+        types[name] = kind.type
         if type(kind.since) is not int or not 1 <= kind.since <= SCHEMA_VERSION:
             raise TypeError(f"{kind.type.__name__}: since must be a generation "
                             f"1..{SCHEMA_VERSION}")
@@ -184,7 +186,6 @@ FAMILIES: tuple[KeyFamily, ...] = _families()
 MESSAGE_TYPES: dict[str, type[Any]] = _registry()  # KIND -> class
 KIND_SINCE: dict[str, int] = {kind.name: kind.since for kind in KINDS}
 RECORD_TYPES: frozenset[type[Any]] = frozenset(RECORDS)
-KIND_OF_TYPE: dict[type[Any], Kind] = {kind.type: kind for kind in KINDS}
 
 
 def version_problem(kind: str, version: object) -> str | None:
