@@ -39,8 +39,9 @@ class Revisits(StrEnum):
 class Algorithm:
     """One registered algorithm.
 
-    ``plan`` names ``f(area, tree, algo, seed) -> Plan`` for offline planners (None for the
-    others); ``lockstep`` names the family's lockstep driver; ``fleet`` says whether
+    ``machine`` names the robot's sans-I/O state machine, the one both the lockstep driver
+    (``lockstep``) and the agent run; ``plan`` names ``f(area, tree, algo, seed) -> Plan`` for
+    offline planners (None for the others); ``fleet`` says whether
     ``mstc up`` / ``mstc tree-fleet`` can run it as processes; ``one_robot_per_cell`` whether
     two robots may start in one coarse cell.
     """
@@ -48,6 +49,7 @@ class Algorithm:
     name: str
     family: Family
     summary: str
+    machine: str
     lockstep: str
     plan: str | None = None
     fleet: bool = True
@@ -60,29 +62,32 @@ class Algorithm:
             raise UnknownAlgorithmError(f"{self.name} makes no offline plan")
         return _load(self.plan)
 
+    def load_machine(self) -> Callable[..., Any]:
+        return _load(self.machine)
+
     def load_lockstep(self) -> Callable[..., Any]:
         return _load(self.lockstep)
 
 
-_OFFLINE_LOCKSTEP = "planner.offline.lockstep:simulate_failures"
+_OFFLINE = ("planner.offline.machine:OfflineRobot", "planner.offline.lockstep:simulate_failures")
+_TREE = ("planner.treecover.step:decide", "planner.treecover.sim:run_coverage")
 
 ALGORITHMS: dict[str, Algorithm] = {a.name: a for a in (
-    Algorithm("nb", Family.OFFLINE, "non-backtracking MSTC", _OFFLINE_LOCKSTEP,
+    Algorithm("nb", Family.OFFLINE, "non-backtracking MSTC", *_OFFLINE,
               plan="planner.offline.plan:plan_for", revisits=Revisits.NONE, paper="003"),
-    Algorithm("bt", Family.OFFLINE, "backtracking MSTC", _OFFLINE_LOCKSTEP,
+    Algorithm("bt", Family.OFFLINE, "backtracking MSTC", *_OFFLINE,
               plan="planner.offline.plan:plan_for", revisits=Revisits.BACKTRACK, paper="003"),
-    Algorithm("opt", Family.OFFLINE, "optimal backtracking MSTC", _OFFLINE_LOCKSTEP,
+    Algorithm("opt", Family.OFFLINE, "optimal backtracking MSTC", *_OFFLINE,
               plan="planner.offline.plan:plan_for", revisits=Revisits.BACKTRACK, paper="003"),
     Algorithm("balanced", Family.OFFLINE, "balanced regions near the lower bound (ours)",
+              "planner.balanced.machine:BalancedRobot",
               "planner.balanced.takeover:simulate_failures",
               plan="planner.balanced.plan:plan_for", fleet=False),
     Algorithm("ormstc", Family.ONLINE, "on-line robust MSTC (no map)",
-              "planner.ormstc.lockstep:simulate", revisits=Revisits.NONE,
-              one_robot_per_cell=True, paper="004"),
-    Algorithm("cocta", Family.TREE, "connected tree coverage, COCTA",
-              "planner.treecover.sim:run_coverage", paper="001"),
-    Algorithm("ncocta", Family.TREE, "connected tree coverage, NCOCTA",
-              "planner.treecover.sim:run_coverage", paper="001"),
+              "planner.ormstc.machine:OrmstcMachine", "planner.ormstc.lockstep:simulate",
+              revisits=Revisits.NONE, one_robot_per_cell=True, paper="004"),
+    Algorithm("cocta", Family.TREE, "connected tree coverage, COCTA", *_TREE, paper="001"),
+    Algorithm("ncocta", Family.TREE, "connected tree coverage, NCOCTA", *_TREE, paper="001"),
 )}
 
 
