@@ -18,7 +18,7 @@ from __future__ import annotations
 from typing import Protocol, cast
 
 from agent.core.errors import HardwareError
-from agent.core.hw_link import HwLink, facing, standing_on
+from agent.core.hw_link import HwLink, facing, standing_on, turns
 from agent.ormstc.sensing import (
     HEADING_DELTA,
     BodyTest,
@@ -34,9 +34,6 @@ from agent.ormstc.sensing import (
 from bus.bridge import Bus
 from bus.messages import HwAction, HwReply, Sensor
 from planner.ormstc.types import Cell, CellStatus, Sense, SenseMode, SenseResult, SubCell
-
-_TURNS: dict[int, tuple[HwAction, ...]] = {
-    0: (), 1: ("turn_right",), 2: ("turn_right", "turn_right"), 3: ("turn_left",)}
 
 
 class Body:
@@ -85,7 +82,7 @@ class Body:
     async def face(self, heading: int) -> None:
         assert self.pose is not None
         action: HwAction
-        for action in _TURNS[(heading - self.pose[2]) % 4]:
+        for action in turns(self.pose[2], heading):
             await self.must(action)
 
     async def sonar(self, sensors: tuple[Sensor, ...]) -> dict[str, int | None]:
