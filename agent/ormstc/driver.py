@@ -72,7 +72,6 @@ from planner.ormstc.types import (
     Tick,
 )
 
-ALGO = "ormstc"
 STATIC_BUMPS = 3  # bumps into an obstacle (not a body) before the move is hopeless
 
 
@@ -164,7 +163,8 @@ class OrmstcAgent(BodyAgent):
         self.state = state
         if self.start is not None:
             self.announcer.set(keys.status(self.bus.mission, self.robot), RobotStatus(
-                self.robot, self.config.incarnation, self.start, ALGO, "", state, message))
+                self.robot, self.config.incarnation, self.start, self.config.algo, "", state,
+                message))
 
     def _broadcast(self, request: Broadcast) -> None:
         self.book.sent(self._publish(request.message))
