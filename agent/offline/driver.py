@@ -1,4 +1,4 @@
-"""The offline agent (``mstc agent --algo nb|bt|opt``): one robot's life from start-up to
+"""The offline agent (``mstc agent --algo nb|bt|opt|balanced``): one robot's life from start-up to
 leaving, in one asyncio TaskGroup.
 
 Life cycle: read the start pose from the body, announce it (RobotStatus), gather every
@@ -27,7 +27,7 @@ from agent.core.lifecycle import run_agent
 from agent.offline.hardware import Hardware
 from agent.offline.options import OfflineOptions
 from agent.offline.peers import PeerTable
-from agent.offline.plan import compute_plan, plan_digest
+from agent.offline.plan import compute_plan, plan_digest, robot_machine
 from agent.offline.runner import OfflineRunner
 from bus import keys
 from bus.bridge import BoundedFifo, Bus, LatestWins, Received
@@ -45,7 +45,6 @@ from bus.messages import (
 )
 from planner.errors import PlannerError
 from planner.maps import resolve_world
-from planner.offline.machine import OfflineRobot
 from planner.types import Plan
 
 _log = logging.getLogger("mstc.agent")
@@ -192,7 +191,7 @@ class OfflineAgent(BodyAgent):
         await self._until(self.peers.missing_digests, "announce their plan digest",
                           self._check_digests)
         self._check_digests()
-        machine = OfflineRobot(self.plan, self.robot)
+        machine = robot_machine(self.plan, self.config.algo, self.robot)
         self.peers.attach(machine)
         self.runner = OfflineRunner(self.bus, self.hardware, self.peers, machine,
                                     self.incarnation, refresh=self.refresh,

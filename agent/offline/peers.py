@@ -22,7 +22,7 @@ from bus.messages import (
     RobotStatus,
     unpack_covered,
 )
-from planner.offline.machine import OfflineRobot
+from planner.offline.machine import PlanRobot
 from planner.types import SubCell
 
 
@@ -37,7 +37,7 @@ class PeerTable:
     dead: dict[int, DeathNotice] = field(default_factory=dict)
     early_cells: dict[SubCell, str] = field(default_factory=dict)  # cell -> key heard on
     mission: MissionStatus | None = None
-    machine: OfflineRobot | None = None
+    machine: PlanRobot | None = None
     changed: asyncio.Event = field(default_factory=asyncio.Event)
     verdict: asyncio.Event = field(default_factory=asyncio.Event)  # mission no longer running
 
@@ -145,7 +145,7 @@ class PeerTable:
 
     # --- use ------------------------------------------------------------------------------
 
-    def attach(self, machine: OfflineRobot) -> None:
+    def attach(self, machine: PlanRobot) -> None:
         """Hand over to the robot's state machine what was heard before it existed."""
         self.machine = machine
         for cell, key in sorted(self.early_cells.items()):

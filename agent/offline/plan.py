@@ -13,22 +13,31 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from planner.algorithms import algorithm
 from planner.geometry import cell_of
 from planner.grid import work_area
-from planner.offline.machine import check_replayable
-from planner.offline.plan import make_plan
+from planner.offline.machine import PlanRobot
 from planner.trees import build_tree
 from planner.types import OccupancyGrid, Plan, SubCell
 
 
 def compute_plan(grid: OccupancyGrid, starts: Sequence[SubCell], algo: str, tree: str,
                  seed: int) -> Plan:
-    """The offline plan for ``starts``; PlannerError for user mistakes (bad starts, algo)."""
+    """The offline plan for ``starts`` by the registry's planner of ``algo``; PlannerError
+    for user mistakes (bad starts, algo) or a plan the algorithm's machine cannot run."""
     area = work_area(grid, starts)
     spanning = build_tree(area.cells, tree, seed=seed, starts=[cell_of(s) for s in starts])
-    plan = make_plan(area, spanning, algo)
-    check_replayable(plan)
+    entry = algorithm(algo)
+    plan: Plan = entry.load_plan()(area, spanning, algo, seed)
+    entry.load_machine().check_replayable(plan)  # type: ignore[attr-defined]
     return plan
+
+
+def robot_machine(plan: Plan, algo: str, robot: int) -> PlanRobot:
+    """Robot ``robot``'s state machine for ``plan``: the one the registry names for ``algo``
+    (the lockstep replay drives the same class)."""
+    machine: PlanRobot = algorithm(algo).load_machine()(plan, robot)
+    return machine
 
 
 def plan_digest(plan: Plan) -> str:

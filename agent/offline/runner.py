@@ -1,4 +1,5 @@
-"""Drives one robot's OfflineRobot state machine with the body and the bus.
+"""Drives one robot's plan-walking state machine (the registry's for its algorithm) with the
+body and the bus.
 
 The machine (planner.offline) decides; this module only carries its decisions out: a MoveTo
 becomes turns and a forward step of the body, then a Progress message; a takeover decision
@@ -16,13 +17,13 @@ from agent.offline.peers import PeerTable
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import EventKind, Progress, RobotEvent
-from planner.offline.machine import Finished, MoveTo, OfflineRobot, WaitFor
+from planner.offline.machine import Finished, MoveTo, PlanRobot, WaitFor
 
 
 class OfflineRunner:
     """Walk the plan, take over dead robots' sections, stop when all is covered."""
 
-    def __init__(self, bus: Bus, hardware: Hardware, peers: PeerTable, machine: OfflineRobot,
+    def __init__(self, bus: Bus, hardware: Hardware, peers: PeerTable, machine: PlanRobot,
                  incarnation: int, *, refresh: Callable[[], Awaitable[None]],
                  refresh_period: float) -> None:
         self.bus = bus

@@ -14,14 +14,47 @@ the shared lockstep loop (planner.offline.lockstep.replay) drives both families.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Mapping
 
 import numpy as np
 
 from planner.errors import UnsupportedPlanError
+from planner.invariants import InvariantViolation, check_path_moves
 from planner.offline.machine import Finished, MoveTo, RobotAction, TakeoverDecision, WaitFor
 from planner.types import BoolArray, IntArray, Plan, SubCell
 
 _NEVER = 1 << 62
+
+
+def validate_replay(plan: Plan, failures: Mapping[int, int], delay: int) -> None:
+    """Raise UnsupportedPlanError unless ``plan`` can be replayed with ``failures``: unit
+    speeds, 4-adjacent walks on the plan's cycle sub-cells, known robots, times >= 0."""
+    ids = [rp.robot for rp in plan.robots]
+    if not ids or len(set(ids)) != len(ids):
+        raise UnsupportedPlanError(f"the plan's robot ids {ids} are empty or repeated")
+    for robot, time in failures.items():
+        if robot not in ids:
+            raise UnsupportedPlanError(f"failure of robot {robot}: no such robot in the plan")
+        if time < 0:
+            raise UnsupportedPlanError(f"robot {robot} fails at time {time}; times are >= 0")
+    if delay < 0:
+        raise UnsupportedPlanError(f"detection delay {delay} is negative")
+    on = plan.cycle.index >= 0
+    for rp in plan.robots:
+        if rp.speed != 1.0:
+            raise UnsupportedPlanError(
+                f"robot {rp.robot} has speed {rp.speed}: only unit-speed plans can be replayed")
+        try:
+            check_path_moves(rp.path)
+        except InvariantViolation as exc:
+            raise UnsupportedPlanError(f"robot {rp.robot}: {exc}") from exc
+        if not all(on[r, c] for r, c in rp.path):
+            raise UnsupportedPlanError(f"robot {rp.robot} walks off the plan's sub-cells")
+
+
+def check_replayable(plan: Plan) -> None:
+    """Raise UnsupportedPlanError unless the takeover semantics can run ``plan``."""
+    validate_replay(plan, {}, 0)
 
 
 class BalancedRobot:
@@ -43,6 +76,7 @@ class BalancedRobot:
         mine = by_id[robot]
         self.position = cycle.position(mine.path[0])
         self._pending = deque(cycle.position(s) for s in mine.path[1:])
+        self.own_steps_left = len(self._pending)
         self.covered = np.zeros(cycle.n, dtype=bool)
         self._uncovered = cycle.n
         self.dead: set[int] = set()
@@ -50,9 +84,23 @@ class BalancedRobot:
         for rp in plan.robots:
             self.on_covered(cycle.position(rp.path[0]))
 
+    check_replayable = staticmethod(check_replayable)
+
     @property
     def all_covered(self) -> bool:
         return self._uncovered == 0
+
+    @property
+    def about_to_take_over(self) -> bool:
+        """True when the next :meth:`next_action` will decide a takeover (idle, coverage
+        incomplete, the watched robot known dead): a driver may first refresh its knowledge."""
+        return (not self._pending and not self.all_covered and self.watching != self.robot
+                and self.watching in self.dead)
+
+    @property
+    def section_done(self) -> bool:
+        """True once the robot has walked its own plan (walk-out and region) to the end."""
+        return self.own_steps_left == 0
 
     def on_covered(self, index: int) -> None:
         if not self.covered[index]:
@@ -65,6 +113,8 @@ class BalancedRobot:
     def on_moved(self) -> int:
         index = self._pending.popleft()
         self.position = index
+        if self.own_steps_left > 0:
+            self.own_steps_left -= 1
         self.on_covered(index)
         return index
 

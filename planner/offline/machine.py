@@ -13,11 +13,12 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from planner.errors import UnsupportedPlanError
-from planner.types import Plan, RobotPlan, SubCell
+from planner.types import BoolArray, Cycle, Plan, RobotPlan, SubCell
 
 
 def region_of(rp: RobotPlan, n: int) -> tuple[int, int]:
@@ -103,6 +104,34 @@ class TakeoverDecision:
     target: int | None
 
 
+class PlanRobot(Protocol):
+    """What a driver (the lockstep replay, the offline agent) asks of the state machine of
+    an algorithm that walks a plan: OfflineRobot here, planner.balanced.machine.BalancedRobot.
+    Places are cycle indices of ``cycle``; the registry (planner.algorithms) names the class
+    for each algorithm, and its ``check_replayable(plan)`` says whether it can run a plan."""
+
+    robot: int
+    cycle: Cycle
+    covered: BoolArray
+    own_steps_left: int
+
+    @property
+    def about_to_take_over(self) -> bool: ...
+
+    @property
+    def section_done(self) -> bool: ...
+
+    def on_covered(self, index: int) -> None: ...
+
+    def on_dead(self, robot: int) -> None: ...
+
+    def on_moved(self) -> int: ...
+
+    def next_action(self) -> RobotAction: ...
+
+    def pop_decisions(self) -> list[TakeoverDecision]: ...
+
+
 def check_replayable(plan: Plan) -> None:
     """Raise UnsupportedPlanError unless the takeover semantics can run ``plan``."""
     validate_replay(plan, {}, 0)
@@ -140,6 +169,8 @@ class OfflineRobot:
         self._decisions: list[TakeoverDecision] = []
         for rp in plan.robots:
             self.on_covered(rp.start_index)
+
+    check_replayable = staticmethod(check_replayable)
 
     @property
     def all_covered(self) -> bool:
