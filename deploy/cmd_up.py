@@ -29,15 +29,15 @@ from deploy.fleet import (
     usage_errors_as_lines,
 )
 from deploy.summary import reachable_sub_cells
+from planner.algorithms import ALGORITHMS, Family, algorithm, choices_help, names
 from planner.geometry import cell_of
 from planner.grid import coarsen, validate_starts, work_area
 from planner.maps import resolve_world
-from planner.offline.plan import make_plan
 from planner.placement import parse_starts, random_starts
 from planner.trees import ALL_TREE_KINDS, build_tree
 from planner.types import BoolArray, OccupancyGrid, SubCell
 
-ALGOS = ("nb", "bt", "opt", "ormstc")
+ALGOS = tuple(n for n in names(fleet=True) if ALGORITHMS[n].family is not Family.TREE)
 # 40 simulated seconds per wall second: a forward step (1.93 s simulated) takes ~50 ms, so
 # coverage visibly grows, and the office demo (6 robots, one killed: ~330 moves of ~2.5
 # simulated seconds for the robot that takes over) ends in about 25 s of wall time.
@@ -137,7 +137,8 @@ class MissionSetup:
             area = work_area(grid, starts)
             tree = build_tree(area.cells, args.tree, seed=args.seed,
                               starts=[cell_of(s) for s in starts])
-            planned = make_plan(area, tree, args.algo).makespan
+            plan_for = algorithm(args.algo).load_plan()
+            planned = plan_for(area, tree, args.algo, args.seed).makespan
         return cls(world=args.world, cell_size=args.cell_size, grid=grid, starts=starts,
                    algo=args.algo, tree=args.tree, seed=args.seed, time_scale=args.time_scale,
                    reachable=reachable_sub_cells(grid, starts),
@@ -150,8 +151,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--world", default="office", metavar="FILE|NAME",
                         help="builtin world name or map file (default office)")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
-                        help="offline MSTC variant the agents run, or ormstc (on-line; "
-                             "its agents read no map) (default opt)")
+                        help=f"algorithm the agents run (default opt): {choices_help(ALGOS)}; "
+                             "ormstc's agents read no map")
     parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
                         help="spanning tree kind (default dfs)")
     parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",

@@ -32,6 +32,7 @@ class Revisits(StrEnum):
 
     NONE = "none"  # every sub-cell entered once (nb; ORMSTC on coverage moves)
     BACKTRACK = "backtrack"  # at most twice, and only by the same robot walking back
+    WALK_OUTS = "walk-outs"  # once, except moves that only lead a robot to its region
     ANY = "any"  # no promise (planned walks that cross, tree traversals)
 
 
@@ -82,7 +83,7 @@ ALGORITHMS: dict[str, Algorithm] = {a.name: a for a in (
     Algorithm("balanced", Family.OFFLINE, "balanced regions near the lower bound (ours)",
               "planner.balanced.machine:BalancedRobot",
               "planner.balanced.takeover:simulate_failures",
-              plan="planner.balanced.plan:plan_for", fleet=False),
+              plan="planner.balanced.plan:plan_for", revisits=Revisits.WALK_OUTS),
     Algorithm("ormstc", Family.ONLINE, "on-line robust MSTC (no map)",
               "planner.ormstc.machine:OrmstcMachine", "planner.ormstc.lockstep:simulate",
               revisits=Revisits.NONE, one_robot_per_cell=True, paper="004"),

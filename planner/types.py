@@ -171,7 +171,11 @@ class RobotAllocation:
 
 @dataclass(frozen=True)
 class RobotPlan:
-    """One robot's part of a plan: the ordered sub-cells it visits, start included."""
+    """One robot's part of a plan: the ordered sub-cells it visits, start included.
+
+    ``walk_out`` counts the first moves of ``path`` that only lead the robot to its region
+    (balanced plans); they cross sub-cells that other robots cover too.
+    """
 
     robot: int
     start: SubCell
@@ -179,6 +183,7 @@ class RobotPlan:
     legs: tuple[Leg, ...]
     path: tuple[SubCell, ...]
     speed: float = 1.0
+    walk_out: int = 0
 
     @property
     def steps(self) -> int:

@@ -53,7 +53,8 @@ def balanced_plan(area: WorkArea, *, seed: int = 0) -> Plan:
         start = walk_out[0]
         robots.append(RobotPlan(robot=region.robot, start=start,
                                 start_index=cycle.position(start), legs=(),
-                                path=walk_out[:-1] + region_path(region, seed=seed)))
+                                path=walk_out[:-1] + region_path(region, seed=seed),
+                                walk_out=len(walk_out) - 1))
     sizes = parts.sizes
     notes = [f"balanced: n = {area.n} sub-cells, k = {k} robots, lower bound ceil(n/k) - 1 = "
              f"{bound} moves; regions of {min(sizes)}..{max(sizes)} sub-cells after "
