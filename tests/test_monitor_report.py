@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from test_monitor_fixtures import M, open_room, run_mission, snake, two_robot_walks
 
@@ -14,6 +15,11 @@ from deploy.cli import main
 from deploy.monitor.recorder import RecordWriter
 from deploy.monitor.report import build_report
 from deploy.monitor.types import Header, Record, Recording
+from planner.balanced import balanced_plan
+from planner.grid import work_area
+from planner.maps import resolve_world
+from planner.placement import random_starts
+from planner.types import SubCell
 
 HEADER = Header(M, 0.0, "test", SCHEMA_VERSION)
 
@@ -136,3 +142,23 @@ def test_a_robot_that_stops_unfinished_counts_as_a_failure() -> None:
     report = report_of([*records[:40], stop, *records[40:]])
     inv = {i.name.split(" (")[0]: i for i in report.invariants}["redundancy"]
     assert inv.status == "skipped" and "[1]" in inv.detail
+
+
+def balanced_walks() -> tuple[np.ndarray, dict[int, list[SubCell]], dict[int, int]]:
+    """The balanced plan's walks on office (6 robots, starts of seed 4: some walk out)."""
+    grid = resolve_world("office")
+    plan = balanced_plan(work_area(grid, random_starts(grid, 6, 4)), seed=0)
+    return (np.array(grid.free), {rp.robot: list(rp.path) for rp in plan.robots},
+            {rp.robot: rp.walk_out for rp in plan.robots})
+
+
+def test_balanced_walk_outs_may_cross_other_regions_and_nothing_else() -> None:
+    free, walks, walk_outs = balanced_walks()
+    assert any(walk_outs.values())
+    name = "no sub-cell covered twice except on walk-outs"
+    report = report_of(run_mission(free, walks, algo="balanced").records)
+    assert report.revisits > 0 and statuses(report)[name] == "ok"
+    still = next(r for r, w in walk_outs.items() if w == 0)
+    walks[still] = [*walks[still], walks[still][-2]]  # a step back over its own region
+    report = report_of(run_mission(free, walks, algo="balanced").records)
+    assert statuses(report)[name] == "failed"

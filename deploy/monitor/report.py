@@ -14,11 +14,11 @@ from bus import keys
 from deploy.monitor.model import FleetModel
 from deploy.monitor.redundancy import EntryAccount, account_entries
 from deploy.monitor.types import Record, Recording
+from deploy.monitor.walkouts import walk_out_redundancy
+from planner.algorithms import ALGORITHMS, Revisits
 
 REPORT_SCHEMA = "mstc-report"
 REPORT_VERSION = 1
-NON_REDUNDANT = ("nb", "ormstc")
-BACKTRACKING = ("bt", "opt")
 # Keys a robot publishes itself (its messages per move); sim/* is simhw's ground truth.
 _ROBOT_KINDS = ("hb", "status", "progress", "event", "look")
 
@@ -249,16 +249,20 @@ def _redundancy(model: FleetModel, algos: list[str]) -> Invariant:
         return Invariant("redundancy", "skipped",
                          f"the run had failures (robots {failures}); takeovers revisit cells")
     counts = model.covered_cells()
+    promise = ALGORITHMS[algo].revisits if algo in ALGORITHMS else Revisits.ANY
     if algo == "ormstc":
         return _ormstc_redundancy(model)
-    if algo in NON_REDUNDANT:
+    if promise is Revisits.WALK_OUTS:
+        return Invariant(f"no sub-cell covered twice except on walk-outs ({algo})",
+                         *walk_out_redundancy(model, algo))
+    if promise is Revisits.NONE:
         twice = sorted(c for c, n in counts.items() if n > 1)
         if twice:
             return Invariant(f"no sub-cell covered twice ({algo})", "failed",
                              f"{len(twice)} sub-cells covered more than once, e.g. "
                              + _whose(model, twice))
         return Invariant(f"no sub-cell covered twice ({algo})", "ok", "every sub-cell once")
-    if algo in BACKTRACKING:
+    if promise is Revisits.BACKTRACK:
         name = f"at most twice, by the same robot ({algo})"
         thrice = sorted(c for c, n in counts.items() if n > 2)
         shared = sorted(c for c, who in model.cover.visitors.items() if len(set(who)) > 1)
