@@ -61,12 +61,13 @@ class BalancedRobot:
     """Feed it :meth:`on_covered` (any robot stood on a cycle index), :meth:`on_dead` and
     :meth:`on_moved`; ask :meth:`next_action`. Every start is covered from the outset."""
 
-    def __init__(self, plan: Plan, robot: int) -> None:
+    def __init__(self, plan: Plan, robot: int, *, takeover: bool = True) -> None:
         by_id = {rp.robot: rp for rp in plan.robots}
         if robot not in by_id:
             raise UnsupportedPlanError(f"robot {robot} is not in the plan")
         cycle = self.cycle = plan.cycle
         self.robot = robot
+        self.takeover = takeover  # False: a re-plan (on_replan), not this robot, recovers
         self.free: BoolArray = cycle.index >= 0
         self.regions = {rp.robot: tuple(dict.fromkeys(cycle.position(s) for s in rp.path))
                         for rp in plan.robots}
@@ -94,7 +95,8 @@ class BalancedRobot:
     def about_to_take_over(self) -> bool:
         """True when the next :meth:`next_action` will decide a takeover (idle, coverage
         incomplete, the watched robot known dead): a driver may first refresh its knowledge."""
-        return (not self._pending and not self.all_covered and self.watching != self.robot
+        return (self.takeover and not self._pending and not self.all_covered
+                and self.watching != self.robot
                 and self.watching in self.dead)
 
     @property
@@ -128,12 +130,21 @@ class BalancedRobot:
             return Finished()
         return WaitFor(self.watching)
 
+    @property
+    def pending_route(self) -> tuple[int, ...]:
+        """The cycle indices this robot is still to walk, in order."""
+        return tuple(self._pending)
+
+    def on_replan(self, route: tuple[int, ...]) -> None:
+        """A re-plan after a death (planner.offline.rebalance): walk ``route`` from here."""
+        self._pending = deque(route)
+
     def pop_decisions(self) -> list[TakeoverDecision]:
         out, self._decisions = self._decisions, []
         return out
 
     def _decide(self) -> None:
-        while self.watching != self.robot and self.watching in self.dead:
+        while self.takeover and self.watching != self.robot and self.watching in self.dead:
             dead = self.watching
             self.watching = self.successor[dead]
             left = [self.cycle.at(i) for i in self.regions[dead] if not self.covered[i]]

@@ -14,13 +14,16 @@ from collections.abc import Mapping
 import numpy as np
 
 from planner.balanced.machine import BalancedRobot, validate_replay
-from planner.offline.lockstep import TakeoverResult, replay
+from planner.offline.lockstep import TakeoverResult, replanner, replay
+from planner.offline.rebalance import Recovery
 from planner.types import IntArray, Plan
 
 
 def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
-                      detection_delay: int = 0) -> TakeoverResult:
-    """Replay ``plan`` when robot ``r`` fails at time ``failures[r]`` (after that many moves).
+                      detection_delay: int = 0,
+                      recovery: Recovery = "takeover") -> TakeoverResult:
+    """Replay ``plan`` when robot ``r`` fails at time ``failures[r]`` (after that many moves);
+    ``recovery`` as in planner.offline.lockstep.simulate_failures.
 
     Raises UnsupportedPlanError for non-unit speeds, paths that are not 4-adjacent walks on
     the plan's cycle sub-cells, unknown robots, or negative times.
@@ -29,9 +32,9 @@ def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
     ids = [rp.robot for rp in plan.robots]
     cycle = plan.cycle
     on = cycle.index >= 0
-    machines = [BalancedRobot(plan, robot) for robot in ids]
+    machines = [BalancedRobot(plan, robot, takeover=recovery == "takeover") for robot in ids]
     replayed = replay(machines, ids, [cycle.position(rp.path[0]) for rp in plan.robots],
-                      failures, detection_delay, cycle.n, cycle.at)
+                      failures, detection_delay, cycle.n, cycle.at, replanner(plan, recovery))
 
     def spread(values: IntArray, fill: int) -> IntArray:
         out = np.full(cycle.index.shape, fill, dtype=np.int64)

@@ -22,7 +22,10 @@ from planner.offline.machine import (
     TakeoverDecision,
     validate_replay,
 )
+from planner.offline.rebalance import Recovery, Replan, Survivor, plan_order, rebalance
 from planner.types import BoolArray, IntArray, Plan, SubCell
+
+Replanner = Callable[[BoolArray, Sequence[Survivor]], Replan]
 
 
 @dataclass(frozen=True)
@@ -73,8 +76,12 @@ class TakeoverResult:
 
 
 def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
-                      detection_delay: int = 0) -> TakeoverResult:
+                      detection_delay: int = 0,
+                      recovery: Recovery = "takeover") -> TakeoverResult:
     """Replay ``plan`` when robot ``r`` fails at time ``failures[r]`` (after that many moves).
+
+    ``recovery`` "takeover" is the papers' ring takeover; "rebalance" re-plans at each known
+    death (planner.offline.rebalance) and nobody takes over.
 
     Raises UnsupportedPlanError for non-unit speeds, walks that do not follow their legs along
     the cycle, regions that do not tile the cycle, unknown robots or negative times.
@@ -84,9 +91,9 @@ def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
     cycle = plan.cycle
     shape = cycle.index.shape
     on = cycle.index >= 0
-    machines = [OfflineRobot(plan, robot) for robot in ids]
+    machines = [OfflineRobot(plan, robot, takeover=recovery == "takeover") for robot in ids]
     replayed = replay(machines, ids, [rp.start_index for rp in plan.robots], failures,
-                      detection_delay, cycle.n, cycle.at)
+                      detection_delay, cycle.n, cycle.at, replanner(plan, recovery))
 
     def spread(values: IntArray, fill: int) -> IntArray:
         out = np.full(shape, fill, dtype=np.int64)
@@ -94,6 +101,18 @@ def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
         return out
 
     return replayed.result(spread)
+
+
+def replanner(plan: Plan, recovery: Recovery) -> Replanner | None:
+    """The re-plan the lockstep runs at each known death, None for the takeover."""
+    if recovery == "takeover":
+        return None
+    rank = plan_order(plan)
+
+    def replan(covered: BoolArray, survivors: Sequence[Survivor]) -> Replan:
+        return rebalance(plan.cycle, covered, survivors, rank)
+
+    return replan
 
 
 class ReplayRobot(Protocol):
@@ -109,6 +128,14 @@ class ReplayRobot(Protocol):
     def next_action(self) -> RobotAction: ...
 
     def pop_decisions(self) -> list[TakeoverDecision]: ...
+
+    @property
+    def position(self) -> int: ...
+
+    @property
+    def pending_route(self) -> tuple[int, ...]: ...
+
+    def on_replan(self, route: tuple[int, ...]) -> None: ...
 
 
 _NEVER = 1 << 62
@@ -142,12 +169,14 @@ class Replayed:
 
 def replay(machines: Sequence[ReplayRobot], ids: Sequence[int], starts: Sequence[int],
            failures: Mapping[int, int], delay: int, size: int,
-           sub_of: Callable[[int], SubCell]) -> Replayed:
+           sub_of: Callable[[int], SubCell], replan: Replanner | None = None) -> Replayed:
     """Unit-time lockstep of ``machines`` (positions in ``ids`` order) over ``size`` places.
 
     Robot ``ids[i]`` dies after ``failures[ids[i]]`` moves and is known dead ``delay`` steps
     later; every machine hears every arrival (perfect knowledge). When nobody can move until
-    a failure becomes known, time jumps straight there.
+    a failure becomes known, time jumps straight there. With ``replan``, each time deaths
+    become known the robots not known dead get their new routes from
+    ``replan(covered, survivors).routes``, computed once from what they all know.
     """
     fail = [failures.get(robot, _NEVER) for robot in ids]
     out = Replayed(list(ids), [[] for _ in ids], np.zeros(size, dtype=np.int64),
@@ -169,11 +198,20 @@ def replay(machines: Sequence[ReplayRobot], ids: Sequence[int], starts: Sequence
     announced: set[int] = set()
     time = 0
     while True:
+        news = False
         for i, at in enumerate(fail):
             if i not in announced and at + delay <= time:
                 announced.add(i)
+                news = True
                 for machine in machines:
                     machine.on_dead(ids[i])
+        if news and replan is not None:
+            alive = [i for i in range(len(machines)) if i not in announced]
+            routes = replan(out.visits > 0, [
+                Survivor(ids[i], machines[i].position, machines[i].pending_route)
+                for i in alive])
+            for i in alive:
+                machines[i].on_replan(routes.routes[ids[i]])
         movers = []
         for i, machine in enumerate(machines):
             if fail[i] <= time:

@@ -148,12 +148,13 @@ class OfflineRobot:
     watches the dead robot's successor (chained). Decisions are kept for :meth:`pop_decisions`.
     """
 
-    def __init__(self, plan: Plan, robot: int) -> None:
+    def __init__(self, plan: Plan, robot: int, *, takeover: bool = True) -> None:
         n = plan.cycle.n
         by_id = {rp.robot: rp for rp in plan.robots}
         if robot not in by_id:
             raise UnsupportedPlanError(f"robot {robot} is not in the plan")
         self.robot = robot
+        self.takeover = takeover  # False: a re-plan (on_replan), not this robot, recovers
         self.cycle = plan.cycle
         self.regions = {rp.robot: region_of(rp, n) for rp in plan.robots}
         order = sorted(by_id, key=lambda r: by_id[r].start_index)
@@ -180,7 +181,8 @@ class OfflineRobot:
     def about_to_take_over(self) -> bool:
         """True when the next :meth:`next_action` will decide a takeover (idle, coverage
         incomplete, the watched robot known dead): a driver may first refresh its knowledge."""
-        return (not self._pending and not self.all_covered and self.watching != self.robot
+        return (self.takeover and not self._pending and not self.all_covered
+                and self.watching != self.robot
                 and self.watching in self.dead)
 
     @property
@@ -217,6 +219,15 @@ class OfflineRobot:
             return Finished()
         return WaitFor(self.watching)
 
+    @property
+    def pending_route(self) -> tuple[int, ...]:
+        """The cycle indices this robot is still to walk, in order."""
+        return tuple(self._pending)
+
+    def on_replan(self, route: tuple[int, ...]) -> None:
+        """A re-plan after a death (planner.offline.rebalance): walk ``route`` from here."""
+        self._pending = deque(route)
+
     def pop_decisions(self) -> list[TakeoverDecision]:
         """Takeovers decided since the last call, in order."""
         out, self._decisions = self._decisions, []
@@ -232,7 +243,7 @@ class OfflineRobot:
 
     def _decide(self) -> None:
         n = self.cycle.n
-        while self.watching != self.robot and self.watching in self.dead:
+        while self.takeover and self.watching != self.robot and self.watching in self.dead:
             dead = self.watching
             self.watching = self.successor[dead]
             target = self.last_uncovered(dead)

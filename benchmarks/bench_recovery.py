@@ -1,0 +1,122 @@
+"""Makespan after deaths, recovery by the papers' takeover vs. re-balancing (issue 14, item 2).
+
+    .venv/bin/python benchmarks/bench_recovery.py                  # the table of docs/balanced.md
+    .venv/bin/python benchmarks/bench_recovery.py --seeds 5 --k 6 --coverage 0.3
+    .venv/bin/python benchmarks/bench_recovery.py --algos opt,balanced --worlds office
+
+Lockstep replays (planner.offline.lockstep / planner.balanced.takeover, unit moves, death
+known at once). For each instance the fault-free plan is replayed once to find the first
+step at which ``--coverage`` of the sub-cells are covered; then each robot in turn dies at
+that step and the coverage time with ``--recovery takeover`` and ``rebalance`` is divided by
+the fault-free makespan (plan makespan): mean and worst over the robots and instances,
+measured side by side on the same deaths. ``ideal`` is the fault-free makespan plus the
+dead robot's remaining work shared evenly among the survivors, over the fault-free makespan.
+
+Instances: the builtin world office with random starts from each seed, and generated
+20 x 30 coarse grids (2400 sub-cells) with 0, 60 and 120 random blocked cells (the work-area
+is the largest component), random starts; nothing is tuned on a fixed set.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import time
+from collections.abc import Iterator
+
+import numpy as np
+
+from planner.algorithms import algorithm
+from planner.geometry import cell_of
+from planner.grid import WorkArea, expand, work_area
+from planner.maps import resolve_world
+from planner.offline.lockstep import TakeoverResult
+from planner.placement import random_starts
+from planner.trees import build_tree
+from planner.types import OccupancyGrid, Plan
+
+
+def generated(rows: int, cols: int, obstacles: int, k: int, seed: int) -> WorkArea:
+    rng = np.random.default_rng(seed)
+    coarse = np.ones((rows, cols), dtype=bool)
+    coarse.ravel()[rng.choice(rows * cols, size=obstacles, replace=False)] = False
+    grid = OccupancyGrid(expand(coarse), name=f"random-{rows}x{cols}-{obstacles}-{seed}")
+    return work_area(grid, random_starts(grid, k, seed))
+
+
+def instances(worlds: list[str], k: int, seeds: int) -> Iterator[tuple[str, WorkArea, int]]:
+    for world in worlds:
+        for seed in range(seeds):
+            if world == "office":
+                grid = resolve_world("office")
+                yield world, work_area(grid, random_starts(grid, k, seed)), seed
+            else:
+                obstacles = int(world.removeprefix("gen"))
+                yield f"20x30 {obstacles} obst.", generated(20, 30, obstacles, k, seed), seed
+
+
+def make(algo: str, area: WorkArea, seed: int) -> Plan:
+    tree = build_tree(area.cells, "dfs", seed=seed, starts=[cell_of(s) for s in area.starts])
+    plan: Plan = algorithm(algo).load_plan()(area, tree, algo, seed)
+    return plan
+
+
+def step_at(result: TakeoverResult, fraction: float) -> int:
+    """First step at which ``fraction`` of the sub-cells are covered."""
+    times = np.sort(result.first_time[result.first_time >= 0])
+    return int(times[max(math.ceil(fraction * times.size) - 1, 0)])
+
+
+def measure(algo: str, area: WorkArea, seed: int, fraction: float) -> list[tuple[float, ...]]:
+    """(takeover, rebalance, ideal) ratios to the fault-free makespan, one row per death."""
+    plan = make(algo, area, seed)
+    replay = algorithm(algo).load_lockstep()
+    free_run = replay(plan, {})
+    at = step_at(free_run, fraction)
+    base = plan.makespan
+    rows = []
+    for rp in plan.robots:
+        left = max(rp.steps - at, 0)
+        ideal = base + left / (plan.k - 1)
+        out = []
+        for recovery in ("takeover", "rebalance"):
+            result = replay(plan, {rp.robot: at}, recovery=recovery)
+            assert result.complete, (algo, area.grid.name, rp.robot, recovery)
+            out.append(result.coverage_time / base)
+        rows.append((*out, ideal / base))
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--algos", default="opt,balanced")
+    parser.add_argument("--worlds", default="office,gen0,gen60,gen120",
+                        help="office and/or genN (20 x 30 with N random obstacle cells)")
+    parser.add_argument("--k", type=int, default=6)
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--coverage", type=float, default=0.3)
+    args = parser.parse_args()
+    worlds = args.worlds.split(",")
+    print(f"one death at {args.coverage:.0%} coverage, k = {args.k}, {args.seeds} seeds, "
+          f"each robot in turn; coverage time / fault-free makespan")
+    print(f"{'world':<18} {'algo':<9} {'fault-free':>10} {'takeover':>15} {'rebalance':>15} "
+          f"{'ideal':>6} {'s':>5}")
+    for algo in args.algos.split(","):
+        by_world: dict[str, list[tuple[float, ...]]] = {}
+        base: dict[str, list[int]] = {}
+        started = time.perf_counter()
+        for name, area, seed in instances(worlds, args.k, args.seeds):
+            by_world.setdefault(name, []).extend(measure(algo, area, seed, args.coverage))
+            base.setdefault(name, []).append(make(algo, area, seed).makespan)
+        spent = (time.perf_counter() - started) / max(len(by_world), 1)
+        for name, rows in by_world.items():
+            take, rebal, ideal = zip(*rows, strict=True)
+            print(f"{name:<18} {algo:<9} {statistics.mean(base[name]):>10.0f} "
+                  f"{statistics.mean(take):>6.2f} (≤{max(take):.2f}) "
+                  f"{statistics.mean(rebal):>6.2f} (≤{max(rebal):.2f}) "
+                  f"{statistics.mean(ideal):>6.2f} {spent:>5.1f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,314 @@
+"""Re-balancing after a death: the survivors share the orphaned work instead of one taking
+it over in sequence (beyond the papers).
+
+When a robot is known dead, the work nobody alive is still going to do — every uncovered
+sub-cell that lies on no survivor's remaining route — is put in the order the plan walks it
+(so a dead robot's orphans are the rest of its walk) and cut into contiguous pieces; each
+piece is appended to one survivor's route, choosing the number of pieces, their boundaries
+and who takes which so that the last survivor finishes as early as possible. Every input is
+agreed (the plan, the coverage, each survivor's position and remaining route) and the
+computation is integer and tie-broken by fixed orders, so every survivor that holds the same
+inputs computes the same re-plan; a piece goes to exactly one survivor, so no sub-cell is
+owned by two live robots. A later death re-plans again: the pieces of the newly dead are
+orphans like the rest of its route.
+
+Places are cycle indices of ``cycle`` (the key space of the offline machines); the walks
+between pieces and to them are shortest paths over the cycle's sub-cells.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+from itertools import pairwise
+from typing import Literal
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+
+from planner.types import BoolArray, Cycle, IntArray, Plan
+
+Recovery = Literal["takeover", "rebalance"]
+RECOVERIES: tuple[Recovery, ...] = ("takeover", "rebalance")
+# Survivors considered for a piece, nearest (finish time plus travel) first: beyond a dozen,
+# a far survivor never shortens the makespan and the assignment grows cubically.
+MAX_TAKERS = 12
+REFINE_ROUNDS = 24
+_FAR = 1 << 40
+
+
+@dataclass(frozen=True)
+class Survivor:
+    """A robot believed alive: where it stands and the cycle indices it is still to walk."""
+
+    robot: int
+    position: int
+    route: tuple[int, ...]
+
+    @property
+    def end(self) -> int:
+        return self.route[-1] if self.route else self.position
+
+
+class Grid:
+    """Shortest paths over the cycle's sub-cells, in cycle-index space (cached sources)."""
+
+    def __init__(self, cycle: Cycle) -> None:
+        self.cycle = cycle
+        self.free: BoolArray = cycle.index >= 0
+        self._dist: dict[int, tuple[IntArray, IntArray]] = {}
+
+    def from_source(self, source: int) -> tuple[IntArray, IntArray]:
+        """(distance, parent) per cycle index from ``source``; parent -1 at the source."""
+        if source not in self._dist:
+            self._dist[source] = self._bfs(source)
+        return self._dist[source]
+
+    def _bfs(self, source: int) -> tuple[IntArray, IntArray]:
+        n = self.cycle.n
+        index = self.cycle.index
+        h, w = index.shape
+        dist = np.full(n, _FAR, dtype=np.int64)
+        parent = np.full(n, -1, dtype=np.int64)
+        dist[source] = 0
+        queue = deque([source])
+        while queue:
+            here = queue.popleft()
+            r, c = self.cycle.at(here)
+            for nr, nc in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
+                if 0 <= nr < h and 0 <= nc < w:
+                    nxt = int(index[nr, nc])
+                    if nxt >= 0 and dist[nxt] == _FAR:
+                        dist[nxt] = dist[here] + 1
+                        parent[nxt] = here
+                        queue.append(nxt)
+        return dist, parent
+
+    def distance(self, a: int, b: int) -> int:
+        ra, ca = self.cycle.at(a)
+        rb, cb = self.cycle.at(b)
+        if abs(ra - rb) + abs(ca - cb) <= 1:
+            return abs(ra - rb) + abs(ca - cb)
+        return int(self.from_source(a)[0][b])
+
+    def path(self, a: int, b: int) -> list[int]:
+        """Cycle indices after ``a`` up to and including ``b`` on a shortest path."""
+        if a == b:
+            return []
+        if self.distance(a, b) == 1:
+            return [b]
+        parent = self.from_source(a)[1]
+        out = [b]
+        while out[-1] != a:
+            out.append(int(parent[out[-1]]))
+        return out[-2::-1]
+
+
+def plan_order(plan: Plan) -> IntArray:
+    """Rank of each cycle index in the order the fault-free plan first covers it, robot by
+    robot in plan order, each robot's region walk (walk-out excluded) in walk order: the
+    orphans of a dead robot, sorted by it, are the rest of its own walk."""
+    n = plan.cycle.n
+    rank = np.full(n, -1, dtype=np.int64)
+    ranked = 0
+    for rp in plan.robots:
+        for sub in rp.path[rp.walk_out:]:
+            index = plan.cycle.position(sub)
+            if rank[index] < 0:
+                rank[index] = ranked
+                ranked += 1
+    left = rank < 0  # only a malformed plan leaves any: keep them, in cycle order
+    rank[left] = ranked + np.arange(int(left.sum()))
+    return rank
+
+
+def orphans(covered: BoolArray, survivors: Sequence[Survivor], rank: IntArray) -> list[int]:
+    """Uncovered cycle indices on no survivor's route, by ``rank``."""
+    planned = np.zeros(covered.shape[0], dtype=bool)
+    for s in survivors:
+        planned[list(s.route)] = True
+    left = np.flatnonzero(~covered & ~planned)
+    return [int(i) for i in left[np.argsort(rank[left], kind="stable")]]
+
+
+@dataclass(frozen=True)
+class Replan:
+    """Each survivor's route from where it stands, and the one robot that owns (is to
+    cover) each uncovered cycle index."""
+
+    routes: dict[int, tuple[int, ...]]
+    owner: dict[int, int]
+
+    @property
+    def makespan(self) -> int:
+        """Moves until the last route is walked."""
+        return max((len(r) for r in self.routes.values()), default=0)
+
+
+@dataclass(frozen=True)
+class _Split:
+    finish: int  # moves until the last survivor is done
+    total: int
+    pieces: tuple[tuple[int, int], ...]  # [start, stop) into the orphan list
+    takers: tuple[int, ...]  # survivor position in the list, per piece
+
+
+def rebalance(cycle: Cycle, covered: BoolArray, survivors: Sequence[Survivor],
+              rank: IntArray) -> Replan:
+    """Each survivor's new route (cycle indices to walk from where it stands).
+
+    Two re-plans are compared and the one that finishes first kept (the first on a tie):
+    each survivor keeps its route and some append a piece of the orphaned work; or all the
+    uncovered work, the survivors' own included, is cut anew (a survivor far from the dead
+    robot's region then takes over part of a nearer survivor's). ``covered`` is per cycle
+    index, ``rank`` the order of the work (:func:`plan_order`). Survivors are taken in
+    robot-id order whatever order they come in, so the result depends only on the inputs.
+    """
+    survivors = sorted(survivors, key=lambda s: s.robot)
+    kept = Replan({s.robot: s.route for s in survivors}, _owners(covered, survivors))
+    if not survivors:
+        return kept
+    grid = Grid(cycle)
+    appended = _share(grid, covered, orphans(covered, survivors, rank), survivors, keep=True)
+    uncovered = np.flatnonzero(~covered)
+    everything = [int(i) for i in uncovered[np.argsort(rank[uncovered], kind="stable")]]
+    resplit = _share(grid, covered, everything, survivors, keep=False)
+    along = _share(grid, covered, _ring_order(uncovered, cycle.n), survivors, keep=False)
+    options = [o for o in (appended, resplit, along) if o is not None]
+    if not options:
+        return kept
+    return min(options, key=lambda o: (o[0].finish, o[0].total))[1]
+
+
+def _owners(covered: BoolArray, survivors: Sequence[Survivor]) -> dict[int, int]:
+    """Uncovered indices on the survivors' routes -> the first survivor (robot order) whose
+    route holds it (two routes share one only where a walk-out crosses a region)."""
+    owner: dict[int, int] = {}
+    for s in survivors:
+        for index in s.route:
+            if not covered[index]:
+                owner.setdefault(index, s.robot)
+    return owner
+
+
+def _ring_order(indices: IntArray, n: int) -> list[int]:
+    """Sorted cycle indices rotated to start after the widest gap along the ring."""
+    if indices.size == 0:
+        return []
+    gaps = (np.roll(indices, -1) - indices) % n
+    gaps[gaps == 0] = n
+    cut = (int(np.argmax(gaps)) + 1) % indices.size
+    return [int(i) for i in np.roll(indices, -cut)]
+
+
+def _share(grid: Grid, covered: BoolArray, work: list[int], survivors: list[Survivor], *,
+           keep: bool) -> tuple[_Split, Replan] | None:
+    """Cut ``work`` into pieces for ``survivors``, after their routes (``keep``) or instead
+    of them; None when there is no work."""
+    if not work:
+        return None
+    steps = [grid.distance(a, b) for a, b in pairwise(work)]
+    walked = np.concatenate([[0], np.cumsum(steps, dtype=np.int64)])  # moves to reach work[j]
+    loads = np.array([len(s.route) if keep else 0 for s in survivors], dtype=np.int64)
+    ends = [s.end if keep else s.position for s in survivors]
+    reach = np.array([[grid.distance(e, o) for o in (work[0], work[-1])] for e in ends])
+    nearest = np.argsort(loads + reach.min(axis=1), kind="stable")[:MAX_TAKERS]
+    best: _Split | None = None
+    for m in range(1, min(len(nearest), len(work)) + 1):
+        split = _best_split(grid, work, walked, loads, ends, [int(i) for i in nearest], m)
+        if best is None or (split.finish, split.total) < (best.finish, best.total):
+            best = split
+    assert best is not None
+    routes = {s.robot: s.route if keep else () for s in survivors}
+    owner = _owners(covered, survivors) if keep else {}
+    for (a, b), taker in zip(best.pieces, best.takers, strict=True):
+        s = survivors[taker]
+        routes[s.robot] = routes[s.robot] + tuple(_walk(grid, ends[taker], work[a:b]))
+        owner.update((index, s.robot) for index in work[a:b])
+    return best, Replan(routes, owner)
+
+
+def _piece_costs(grid: Grid, work: list[int], walked: IntArray, ends: list[int],
+                 pieces: list[tuple[int, int]]) -> IntArray:
+    """Moves for each survivor (row) to walk to and along each piece (column)."""
+    costs = np.empty((len(ends), len(pieces)), dtype=np.int64)
+    for j, (a, b) in enumerate(pieces):
+        inside = int(walked[b - 1] - walked[a])
+        for i, e in enumerate(ends):
+            costs[i, j] = inside + min(grid.distance(e, work[a]), grid.distance(e, work[b - 1]))
+    return costs
+
+
+def _best_split(grid: Grid, work: list[int], walked: IntArray, loads: IntArray,
+                ends: list[int], takers: list[int], m: int) -> _Split:
+    """``m`` pieces: equal lengths first, then boundaries moved from the piece that ends
+    later towards its neighbour, keeping the best split seen."""
+    size = len(work)
+    bounds = [round(size * j / m) for j in range(m + 1)]
+    best: _Split | None = None
+    seen: set[tuple[int, ...]] = set()
+    for _ in range(REFINE_ROUNDS):
+        key = tuple(bounds)
+        if key in seen:
+            break
+        seen.add(key)
+        pieces = list(pairwise(bounds))
+        costs = _piece_costs(grid, work, walked, [ends[t] for t in takers], pieces)
+        costs += loads[takers][:, None]
+        rows, finish_of_piece = _bottleneck(costs)
+        assigned = {takers[r] for r in rows}
+        idle = [int(loads[i]) for i in range(len(loads)) if i not in assigned]
+        finish = max([*finish_of_piece.tolist(), *idle])
+        split = _Split(int(finish), int(finish_of_piece.sum()), tuple(pieces),
+                       tuple(takers[r] for r in rows))
+        if best is None or (split.finish, split.total) < (best.finish, best.total):
+            best = split
+        bounds = _shifted(bounds, finish_of_piece)
+    assert best is not None
+    return best
+
+
+def _shifted(bounds: list[int], finish: IntArray) -> list[int]:
+    """Each inner boundary moved by half the finish-time difference of its two pieces (a
+    piece entry costs about one move), pieces kept non-empty."""
+    out = list(bounds)
+    for j in range(1, len(bounds) - 1):
+        move = int(finish[j - 1] - finish[j]) // 2
+        out[j] = min(max(out[j] - move, out[j - 1] + 1), bounds[j + 1] - 1)
+    return out
+
+
+def _bottleneck(costs: IntArray) -> tuple[list[int], IntArray]:
+    """A distinct row per column minimising the largest cost, then the total: (row per
+    column, cost per column)."""
+    cols_n = costs.shape[1]
+    values = np.unique(costs)
+    low, high = 0, len(values) - 1
+    while low < high:
+        mid = (low + high) // 2
+        graph = csr_matrix((costs <= values[mid]).T.astype(np.int8))
+        if int((maximum_bipartite_matching(graph, perm_type="column") >= 0).sum()) == cols_n:
+            high = mid
+        else:
+            low = mid + 1
+    allowed = np.where(costs <= values[low], costs, _FAR)
+    r, c = linear_sum_assignment(allowed.T)  # rows are pieces here
+    row_of = [0] * cols_n
+    for piece, survivor in zip(r.tolist(), c.tolist(), strict=True):
+        row_of[piece] = survivor
+    return row_of, np.array([costs[row_of[j], j] for j in range(cols_n)], dtype=np.int64)
+
+
+def _walk(grid: Grid, start: int, piece: Sequence[int]) -> list[int]:
+    """From ``start`` to the nearer end of ``piece``, then along it, bridging gaps."""
+    if grid.distance(start, piece[-1]) < grid.distance(start, piece[0]):
+        piece = piece[::-1]
+    out: list[int] = []
+    at = start
+    for place in piece:
+        out.extend(grid.path(at, place))
+        at = place
+    return out

@@ -1,0 +1,130 @@
+"""Re-balancing after deaths (planner.offline.rebalance) as the lockstep oracle runs it:
+everything gets covered, every uncovered sub-cell has one live owner whose route reaches it,
+the re-plan depends only on its inputs, and it finishes before the papers' takeover."""
+
+from __future__ import annotations
+
+import random
+import statistics
+
+import numpy as np
+import pytest
+
+from planner.algorithms import algorithm
+from planner.geometry import cell_of
+from planner.grid import WorkArea, expand, work_area
+from planner.invariants import check_path_moves
+from planner.maps import resolve_world
+from planner.offline.rebalance import RECOVERIES, Survivor, plan_order, rebalance
+from planner.placement import random_starts
+from planner.trees import build_tree
+from planner.types import OccupancyGrid, Plan
+
+ALGOS = ("nb", "opt", "balanced")
+
+
+def generated(seed: int, k: int) -> WorkArea:
+    rng = np.random.default_rng(seed)
+    rows, cols = int(rng.integers(6, 12)), int(rng.integers(6, 14))
+    coarse = np.ones((rows, cols), dtype=bool)
+    blocked = int(rng.integers(0, rows * cols // 6))
+    coarse.ravel()[rng.choice(rows * cols, size=blocked, replace=False)] = False
+    grid = OccupancyGrid(expand(coarse), name=f"gen-{seed}")
+    return work_area(grid, random_starts(grid, k, seed))
+
+
+def make(algo: str, area: WorkArea, seed: int) -> Plan:
+    tree = build_tree(area.cells, "dfs", seed=seed, starts=[cell_of(s) for s in area.starts])
+    plan: Plan = algorithm(algo).load_plan()(area, tree, algo, seed)
+    return plan
+
+
+def random_deaths(plan: Plan, rng: random.Random, count: int) -> dict[int, int]:
+    robots = rng.sample([rp.robot for rp in plan.robots], count)
+    return {r: rng.randrange(0, max(plan.makespan, 1)) for r in robots}
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+@pytest.mark.parametrize("seed", range(8))
+def test_several_deaths_at_random_times_are_all_recovered(algo: str, seed: int) -> None:
+    rng = random.Random(seed)
+    k = rng.randrange(3, 8)
+    area = generated(seed, k)
+    plan = make(algo, area, seed)
+    deaths = random_deaths(plan, rng, rng.randrange(1, k))
+    delay = rng.randrange(0, 4)  # a death known later: the others re-plan without it first
+    result = algorithm(algo).load_lockstep()(plan, deaths, detection_delay=delay,
+                                             recovery="rebalance")
+    assert result.complete and int(result.covered.sum()) == area.n
+    assert result.takeovers == ()  # nobody took over in sequence
+    for robot, at in deaths.items():
+        assert len(result.walks[result.robots.index(robot)]) - 1 <= at
+
+
+def test_two_deaths_in_one_step_and_one_during_the_recovery() -> None:
+    grid = resolve_world("office")
+    area = work_area(grid, random_starts(grid, 6, 1))
+    plan = make("balanced", area, 1)
+    replay = algorithm("balanced").load_lockstep()
+    for deaths in ({1: 30, 2: 30}, {1: 30, 4: 35}, {0: 10, 1: 20, 2: 30, 3: 40, 4: 50}):
+        result = replay(plan, deaths, recovery="rebalance")
+        assert result.complete, deaths
+
+
+def snapshot(seed: int) -> tuple[Plan, np.ndarray, list[Survivor]]:
+    """The balanced plan of a generated area at one robot's death, half-way through."""
+    area = generated(seed, 5)
+    plan = make("balanced", area, seed)
+    cycle = plan.cycle
+    covered = np.zeros(cycle.n, dtype=bool)
+    survivors = []
+    for rp in plan.robots:
+        walk = [cycle.position(s) for s in rp.path]
+        done = len(walk) // 2
+        covered[walk[:done + 1]] = True
+        if rp.robot != 2:
+            survivors.append(Survivor(rp.robot, walk[done], tuple(walk[done + 1:])))
+    return plan, covered, survivors
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_every_uncovered_sub_cell_has_one_live_owner_on_whose_route_it_lies(seed: int) -> None:
+    plan, covered, survivors = snapshot(seed)
+    replan = rebalance(plan.cycle, covered, survivors, plan_order(plan))
+    alive = {s.robot for s in survivors}
+    assert set(replan.owner) == set(np.flatnonzero(~covered).tolist())
+    assert set(replan.owner.values()) <= alive and set(replan.routes) == alive
+    for index, robot in replan.owner.items():
+        assert index in replan.routes[robot]
+    at = {s.robot: s.position for s in survivors}
+    for robot, route in replan.routes.items():  # a walk of 4-adjacent moves from where it is
+        check_path_moves([plan.cycle.at(i) for i in (at[robot], *route)])
+
+
+def test_the_replan_depends_only_on_its_inputs() -> None:
+    plan, covered, survivors = snapshot(3)
+    rank = plan_order(plan)
+    first = rebalance(plan.cycle, covered, survivors, rank)
+    again = rebalance(plan.cycle, covered.copy(), list(reversed(survivors)), rank.copy())
+    assert first == again
+
+
+@pytest.mark.parametrize("algo", ("opt", "balanced"))
+def test_rebalancing_beats_the_takeover_on_seeded_instances(algo: str) -> None:
+    """One death at 30 % coverage on generated instances: rebalancing finishes first on
+    average, and never later than the takeover."""
+    ratios = []
+    for seed in range(10):
+        area = generated(100 + seed, 6)
+        plan = make(algo, area, seed)
+        replay = algorithm(algo).load_lockstep()
+        first = replay(plan, {}).first_time
+        times = np.sort(first[first >= 0])
+        at = int(times[int(0.3 * times.size)])
+        dead = plan.robots[seed % plan.k].robot
+        took, rebalanced = (replay(plan, {dead: at}, recovery=r) for r in RECOVERIES)
+        assert took.complete and rebalanced.complete
+        assert rebalanced.coverage_time is not None and took.coverage_time is not None
+        assert rebalanced.coverage_time <= took.coverage_time, seed
+        ratios.append(rebalanced.coverage_time / took.coverage_time)
+    assert statistics.mean(ratios) < 0.85
