@@ -17,7 +17,6 @@ from deploy.fleet import (
     RunDir,
     latest_run_dir,
     send_signal,
-    usage_errors_as_lines,
     wait_gone,
 )
 
@@ -40,10 +39,6 @@ def _stop(records: list[ProcessRecord], timeout: float) -> list[ProcessRecord]:
 
 
 def run(args: argparse.Namespace) -> int:
-    return usage_errors_as_lines("down", _run, args)
-
-
-def _run(args: argparse.Namespace) -> int:
     run_dir = RunDir(args.run_dir or latest_run_dir())
     info = run_dir.read_fleet()
     launcher = [p for p in info.processes if p.role == LAUNCHER]

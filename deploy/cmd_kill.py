@@ -9,13 +9,12 @@ import asyncio
 import signal
 from pathlib import Path
 
+from deploy.errors import FleetError
 from deploy.fleet import (
-    FleetError,
     FleetInfo,
     RunDir,
     latest_run_dir,
     send_signal,
-    usage_errors_as_lines,
 )
 
 
@@ -28,10 +27,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    return usage_errors_as_lines("kill", _run, args)
-
-
-def _run(args: argparse.Namespace) -> int:
     run_dir = RunDir(args.run_dir or latest_run_dir())
     info = run_dir.read_fleet()
     if args.hw:

@@ -17,7 +17,7 @@ from pathlib import Path
 from bus.argtypes import positive
 from bus.config import add_connection_arguments, settings_from_args
 from bus.errors import BusError
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,7 +47,8 @@ def _follow_run_dir(args: argparse.Namespace) -> None:
     An explicit --mission (or MSTC_MISSION) wins; without a run directory the defaults stay.
     """
     from bus.config import DEFAULT_MISSION, ENV_MISSION
-    from deploy.fleet import FleetError, RunDir, latest_run_dir
+    from deploy.errors import FleetError
+    from deploy.fleet import RunDir, latest_run_dir
 
     explicit_mission = args.mission != DEFAULT_MISSION or ENV_MISSION in os.environ
     if args.run_dir is None and explicit_mission:
@@ -68,16 +69,6 @@ def _follow_run_dir(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        # Caught here too: under "python -m deploy.cli" the dispatcher's UsageError is another
-        # class object than the one deploy.cli exports to us.
-        print(f"mstc monitor: error: {error}", file=sys.stderr)
-        return 2
-
-
-def _run(args: argparse.Namespace) -> int:
     from deploy.monitor.app import PlainScreen, RichScreen, Screen, Watcher, watch_live
 
     _follow_run_dir(args)

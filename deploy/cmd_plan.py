@@ -8,7 +8,7 @@ import sys
 from typing import Any
 
 from bus.argtypes import positive_int
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 from planner.grid import cell_of, work_area
 from planner.maps import resolve_world
 from planner.metrics import PlanMetrics, plan_metrics

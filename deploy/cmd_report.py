@@ -11,8 +11,6 @@ import json
 import sys
 from pathlib import Path
 
-from deploy.cli import UsageError
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", type=Path, metavar="FILE", help="a recording (JSON Lines)")
@@ -23,16 +21,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        # Caught here too: under "python -m deploy.cli" the dispatcher's UsageError is another
-        # class object than the one deploy.cli exports to us.
-        print(f"mstc report: error: {error}", file=sys.stderr)
-        return 2
-
-
-def _run(args: argparse.Namespace) -> int:
     from deploy.monitor.recorder import read_recording
     from deploy.monitor.report import build_report, format_report, replay_model
 

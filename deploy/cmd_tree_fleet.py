@@ -18,8 +18,8 @@ import asyncio
 import json
 
 from bus.argtypes import positive, positive_int
-from deploy.cli import UsageError
-from deploy.fleet import default_run_dir, unique_mission, usage_errors_as_lines
+from deploy.errors import UsageError
+from deploy.fleet import default_run_dir, unique_mission
 from deploy.tree_fleet import TreeFleet, TreeFleetOptions, TreeFleetOutcome
 from planner.treecover.failures import run_with_failures
 from planner.treecover.sim import run_coverage
@@ -61,10 +61,6 @@ def kill_order(text: str) -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
-    return usage_errors_as_lines("tree-fleet", _run, args)
-
-
-def _run(args: argparse.Namespace) -> int:
     tree = tree_from_spec(args.tree)
     victims = [robot for robot, _ in args.kill]
     if any(robot >= args.robots for robot in victims):

@@ -16,7 +16,6 @@ Run directory layout::
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import json
 import os
@@ -26,34 +25,16 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from deploy.cli import UsageError
+from deploy.errors import FleetError
 
 RUNS_ROOT = Path("runs")
 FLEET_FILE = "fleet.json"
 SUMMARY_FILE = "summary.json"
 LAUNCHER = "up"
-
-
-class FleetError(UsageError):
-    """A fleet could not be started, found or stopped; the message is one readable line."""
-
-
-def usage_errors_as_lines(command: str, body: Callable[[argparse.Namespace], int],
-                          args: argparse.Namespace) -> int:
-    """``body(args)``, with a UsageError (FleetError included) printed as one line, exit 2.
-
-    Caught here too because under "python -m deploy.cli" the dispatcher's UsageError is
-    another class object than the one FleetError derives from."""
-    try:
-        return body(args)
-    except UsageError as error:
-        print(f"mstc {command}: error: {error}", file=sys.stderr)
-        return 2
 
 
 @dataclass(frozen=True)
@@ -262,14 +243,9 @@ class Child:
         return log_tail(self.log, lines)
 
 
-# Not "-m deploy.cli": that imports deploy.cli twice (as __main__ and as deploy.cli), so
-# exceptions defined there would escape the dispatcher's one-line error handling.
-_MAIN = "import sys; from deploy.cli import main; sys.exit(main())"
-
-
 def mstc_argv(command: str, *args: str) -> list[str]:
     """The argv of an ``mstc <command>`` child run by this Python interpreter."""
-    return [sys.executable, "-c", _MAIN, command, *args]
+    return [sys.executable, "-m", "deploy.cli", command, *args]
 
 
 def log_tail(path: Path, lines: int = 15) -> str:

@@ -32,11 +32,10 @@ from bus.messages import (
     WorldState,
 )
 from bus.router import READY_MARK as ROUTER_READY
-from deploy.cmd_up import KillOrder, MissionSetup
+from deploy.errors import FleetError
 from deploy.fleet import (
     LAUNCHER,
     Child,
-    FleetError,
     FleetInfo,
     ProcessRecord,
     RunDir,
@@ -46,6 +45,7 @@ from deploy.fleet import (
     wait_ready,
 )
 from deploy.progress import ProgressView, make_progress
+from deploy.settings import KillOrder, MissionSetup
 from deploy.summary import MissionTracker, format_summary, summarize
 
 SIMHW_READY = "simhw ready"

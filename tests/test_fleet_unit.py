@@ -30,9 +30,10 @@ from bus.messages import (
     make_world_state,
 )
 from deploy import cmd_down, cmd_kill, cmd_up
-from deploy.cmd_up import KillOrder, liveness_defaults, parse_kill, stall_timeout
+from deploy.cli import main as cli_main
+from deploy.cmd_up import liveness_defaults, stall_timeout
+from deploy.errors import FleetError
 from deploy.fleet import (
-    FleetError,
     FleetInfo,
     ProcessRecord,
     RunDir,
@@ -42,6 +43,7 @@ from deploy.fleet import (
     start_ticks,
 )
 from deploy.progress import PlainProgress
+from deploy.settings import KillOrder, MissionSetup, parse_kill
 from deploy.summary import MissionTracker, format_summary, reachable_sub_cells, summarize
 from planner.types import OccupancyGrid
 
@@ -73,9 +75,10 @@ def test_parse_kill_rejects_malformed(text: str) -> None:
 ])
 def test_up_rejects_mistakes_in_one_line_before_starting(tmp_path: Path, extra: list[str],
                                                         message: str) -> None:
-    main = "import sys; from deploy.cli import main; sys.exit(main())"
+    # run as `python -m deploy.cli`: the entry module is then __main__, a second copy of it,
+    # and the commands' errors must still be printed as one line
     result = subprocess.run(
-        [sys.executable, "-c", main, "up", "-n", "2", "--world", "open-room",
+        [sys.executable, "-m", "deploy.cli", "up", "-n", "2", "--world", "open-room",
          "--run-dir", str(tmp_path / "run"), *extra],
         capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
@@ -122,7 +125,7 @@ def test_up_plans_paper_trees_from_the_robots_starts() -> None:
     cmd_up.add_arguments(parser)
     args = parser.parse_args(["-n", "3", "--world", "open-room", "--tree", "createtree",
                               "--seed", "2"])
-    setup = cmd_up.MissionSetup.from_args(args)
+    setup = MissionSetup.from_args(args)
     agents = compute_plan(setup.grid, setup.starts, "opt", "createtree", 2)
     assert setup.planned_makespan == agents.makespan
     assert plan_digest(agents) != plan_digest(
@@ -360,7 +363,8 @@ def test_kill_and_down_on_stand_in_processes(tmp_path: Path,
         args = argparse.Namespace(robot=1, hw=False, run_dir=tmp_path)
         assert cmd_kill.run(args) == 0
         assert agent1.wait(10) == -signal.SIGKILL
-        assert cmd_kill.run(args) == 2  # already gone: a one-line error
+        # already gone: a one-line error from the dispatcher
+        assert cli_main(["kill", "1", "--run-dir", str(tmp_path)]) == 2
         assert "not running" in capsys.readouterr().err
         assert cmd_down.run(argparse.Namespace(run_dir=tmp_path, timeout=1.0)) == 0
         assert agent0.wait(10) == -signal.SIGTERM
