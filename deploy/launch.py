@@ -9,14 +9,12 @@ SIGTERM and a SIGKILL after a grace period, whatever ended the mission (also exc
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import contextlib
 import os
 import signal
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 from bus import keys
 from bus.bridge import BoundedFifo, Bus, LatestWins
@@ -45,7 +43,7 @@ from deploy.fleet import (
     wait_ready,
 )
 from deploy.progress import ProgressView, make_progress
-from deploy.settings import KillOrder, MissionSetup
+from deploy.settings import MissionSetup, UpSettings
 from deploy.summary import MissionTracker, format_summary, summarize
 
 SIMHW_READY = "simhw ready"
@@ -65,17 +63,16 @@ class Outcome:
 class Launcher:
     """Starts, supervises and stops one fleet."""
 
-    def __init__(self, setup: MissionSetup, orders: list[KillOrder], endpoint: str,
-                 mission: str, run_dir: RunDir, args: argparse.Namespace,
-                 view: ProgressView) -> None:
+    def __init__(self, setup: MissionSetup, settings: UpSettings, endpoint: str,
+                 run_dir: RunDir, view: ProgressView) -> None:
         self.setup = setup
-        self.orders = list(orders)
+        self.orders = list(settings.kills)
         self.endpoint = endpoint
-        self.mission = mission
+        self.mission = settings.mission
         self.run_dir = run_dir
-        self.args = args
+        self.settings = settings
         self.view = view
-        self.own_router = args.connect is None
+        self.own_router = settings.own_router
         self.router: Child | None = None
         self.simhw: Child | None = None
         self.agents: list[Child] = []
@@ -93,7 +90,7 @@ class Launcher:
 
     def _connection(self) -> list[str]:
         return ["--mode", "client", "--connect", self.endpoint, "--mission", self.mission,
-                "--lease-ms", str(self.args.lease_ms)]
+                "--lease-ms", str(self.settings.lease_ms)]
 
     def _spawn(self, name: str, role: str, argv: list[str], robot: int | None = None) -> Child:
         child = Child(name, role, argv, self.run_dir.log_path(name), robot)
@@ -106,7 +103,7 @@ class Launcher:
     async def start_router(self) -> None:
         if self.own_router:
             self.router = self._spawn("router", "router", mstc_argv(
-                "router", "--listen", self.endpoint, "--lease-ms", str(self.args.lease_ms)))
+                "router", "--listen", self.endpoint, "--lease-ms", str(self.settings.lease_ms)))
             await self._wait_ready(self.router, ROUTER_READY, 20.0)
 
     async def start_fleet(self) -> None:
@@ -116,7 +113,7 @@ class Launcher:
                                         ["--cell-size", str(s.cell_size)])
         self.simhw = self._spawn("simhw", "simhw", mstc_argv(
             "simhw", *world, "--robots", starts, "--seed", str(s.seed),
-            "--time-scale", str(s.time_scale), *self._connection(), *self.args.simhw_arg))
+            "--time-scale", str(s.time_scale), *self._connection(), *self.settings.simhw_args))
         await self._wait_ready(self.simhw, SIMHW_READY, 30.0)
         if self.stop.is_set():
             return
@@ -124,7 +121,8 @@ class Launcher:
             self.agents.append(self._spawn(f"agent-{robot}", "agent", mstc_argv(
                 "agent", "--id", str(robot), "--algo", s.algo, *world, "--tree", s.tree,
                 "--seed", str(s.seed), "--robots", str(s.k), "--dead-after",
-                str(self.args.dead_after), *self._connection(), *self.args.agent_arg), robot))
+                str(self.settings.dead_after), *self._connection(),
+                *self.settings.agent_args), robot))
         self.write_fleet()
         self.view.event(f"fleet up: mission {self.mission}, {s.k} agents, world {s.world}, "
                         f"algo {s.algo}, run dir {self.run_dir.path}")
@@ -207,8 +205,8 @@ class Launcher:
                 poller.cancel()
 
     async def watch(self, bus: Bus) -> Outcome:
-        t, args = self.tracker, self.args
-        start_timeout = args.start_timeout or 30.0 + self.setup.k
+        t, s = self.tracker, self.settings
+        start_timeout = s.start_timeout
         started: float | None = None
         complete_at: float | None = None
         initial = t.covered
@@ -239,11 +237,11 @@ class Launcher:
                 if complete_at is None:
                     complete_at = now
                     self.view.event(f"[{now - self.t0:6.1f}s] every reachable sub-cell covered")
-                if self._all_settled() or now - complete_at > args.linger:
+                if self._all_settled() or now - complete_at > s.linger:
                     return Outcome(0, "every reachable free sub-cell was covered")
             elif all(c.returncode is not None for c in self.agents):
                 return Outcome(1, "every agent has stopped; " + self._uncovered())
-            elif started is not None and now - t.last_progress > args.stall_timeout:
+            elif started is not None and now - t.last_progress > s.stall_timeout:
                 return Outcome(1, self._stall_diagnosis(now - t.last_progress))
             self._flush_log()
             self.view.update(t, now - self.t0)
@@ -341,19 +339,19 @@ def _install_signals(launcher: Launcher) -> list[int]:
     return handled
 
 
-async def launch(setup: MissionSetup, orders: list[KillOrder], endpoint: str, mission: str,
-                 run_dir: Path, args: argparse.Namespace, t0: float) -> int:
+async def launch(setup: MissionSetup, settings: UpSettings, endpoint: str, t0: float) -> int:
     """Run the whole fleet; return the exit code (see deploy.cmd_up)."""
-    rd = RunDir(run_dir).create()
-    view = make_progress(args.plain)
-    launcher = Launcher(setup, orders, endpoint, mission, rd, args, view)
+    mission = settings.mission
+    rd = RunDir(settings.run_dir).create()
+    view = make_progress(settings.plain)
+    launcher = Launcher(setup, settings, endpoint, rd, view)
     launcher.t0 = t0
     handled = _install_signals(launcher)
-    settings = ConnectionSettings(connect=(endpoint,), mission=mission,
-                                  lease_ms=args.lease_ms)
+    connection = ConnectionSettings(connect=(endpoint,), mission=mission,
+                                    lease_ms=settings.lease_ms)
     try:
         await launcher.start_router()
-        async with Bus.connect(settings) as bus:
+        async with Bus.connect(connection) as bus:
             launcher.subscribe(bus)
             await launcher.start_fleet()
             outcome = await launcher.supervise(bus) if not launcher.stop.is_set() else \

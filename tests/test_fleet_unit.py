@@ -31,7 +31,6 @@ from bus.messages import (
 )
 from deploy import cmd_down, cmd_kill, cmd_up
 from deploy.cli import main as cli_main
-from deploy.cmd_up import liveness_defaults, stall_timeout
 from deploy.errors import FleetError
 from deploy.fleet import (
     FleetInfo,
@@ -43,7 +42,7 @@ from deploy.fleet import (
     start_ticks,
 )
 from deploy.progress import PlainProgress
-from deploy.settings import KillOrder, MissionSetup, parse_kill
+from deploy.settings import KillOrder, MissionSetup, liveness, parse_kill, stall_timeout
 from deploy.summary import MissionTracker, format_summary, reachable_sub_cells, summarize
 from planner.types import OccupancyGrid
 
@@ -125,7 +124,7 @@ def test_up_plans_paper_trees_from_the_robots_starts() -> None:
     cmd_up.add_arguments(parser)
     args = parser.parse_args(["-n", "3", "--world", "open-room", "--tree", "createtree",
                               "--seed", "2"])
-    setup = MissionSetup.from_args(args)
+    setup = MissionSetup.plan(cmd_up.up_settings(args))
     agents = compute_plan(setup.grid, setup.starts, "opt", "createtree", 2)
     assert setup.planned_makespan == agents.makespan
     assert plan_digest(agents) != plan_digest(
@@ -134,7 +133,7 @@ def test_up_plans_paper_trees_from_the_robots_starts() -> None:
 
 def test_default_stall_timeout_allows_100_moves_of_wall_time() -> None:
     def timeout(scale: float, given: float | None = None) -> float:
-        return stall_timeout(argparse.Namespace(time_scale=scale, stall_timeout=given))
+        return stall_timeout(scale, given)
 
     assert timeout(0.0) == timeout(float("inf")) == 20.0
     assert timeout(1.0) == pytest.approx(20.0 + 100 * 2.5)
@@ -143,11 +142,9 @@ def test_default_stall_timeout_allows_100_moves_of_wall_time() -> None:
 
 
 def test_crowded_fleets_get_long_liveness_timers_unless_told() -> None:
-    def settings(robots: int, cores: int, **given: float) -> tuple[float, float]:
-        args = argparse.Namespace(**{"robots": robots, "lease_ms": None, "dead_after": None,
-                                     **given})
-        liveness_defaults(args, cores)
-        return args.lease_ms, args.dead_after
+    def settings(robots: int, cores: int, lease_ms: int | None = None,
+                 dead_after: float | None = None) -> tuple[float, float]:
+        return liveness(robots, lease_ms, dead_after, cores)
 
     assert settings(12, 2) == (1000, 3.0)
     assert settings(13, 2) == (5000, 5.0)
