@@ -29,6 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     run_dir = RunDir(args.run_dir or latest_run_dir())
     info = run_dir.read_fleet()
+    if args.hw and info.kind == "tree":
+        raise FleetError(f"mission {info.mission} covers a tree: its robots have no simulated "
+                         f"bodies to fail (kill the agent without --hw)")
     if args.hw:
         message = asyncio.run(fail_body(info, args.robot))
         print(f"mstc kill: {message} (mission {info.mission})")

@@ -7,6 +7,10 @@ With ``--kill``, the lockstep run to equal is ``run_with_failures`` with every r
 the step the fleet removed it (a SIGKILL lands between steps at a moment the launcher does not
 choose exactly; the fleet's agents decide at which step boundary the death counts).
 
+The run directory holds fleet.json like ``mstc up``'s, so ``mstc kill ID`` (a fail-stop robot,
+judged like ``--kill``), ``mstc down`` and ``mstc monitor`` work on a tree mission; ``--record``
+writes every message for ``mstc report`` (which recomputes this verdict) and ``mstc replay``.
+
 Exit codes: 0 covered, connected at every step and equal to the lockstep run; 1 otherwise (a
 process failed, the run stalled, or the results differ); 2 usage or start-up error.
 """
@@ -14,13 +18,16 @@ process failed, the run stalled, or the results differ); 2 usage or start-up err
 from __future__ import annotations
 
 import argparse
-import asyncio
 import json
+from pathlib import Path
 
 from bus.argtypes import positive, positive_int
+from bus.config import ConnectionSettings
 from deploy.errors import UsageError
 from deploy.fleet import default_run_dir, unique_mission
-from deploy.tree_fleet import TreeFleet, TreeFleetOptions, TreeFleetOutcome
+from deploy.settings import KillOrder
+from deploy.supervisor import run_recorded
+from deploy.tree_fleet import TreeFleet, TreeFleetOptions, TreeFleetOutcome, free_endpoint
 from planner.treecover.failures import run_with_failures
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import tree_from_spec
@@ -35,7 +42,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--algo", choices=["cocta", "ncocta"], default="cocta")
     parser.add_argument("--listen", metavar="ENDPOINT",
                         help="router endpoint (default: a free port on 127.0.0.1)")
-    parser.add_argument("--run-dir", metavar="DIR", help="logs and pids (default runs/...)")
+    parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
+                        help="logs, PID files and fleet.json (default runs/<time>-<mission>)")
+    parser.add_argument("--mission", default=None,
+                        help="mission name (default: a unique fleet-<hex> per run)")
+    parser.add_argument("--record", type=Path, default=None, metavar="FILE",
+                        help="record every message of the mission to FILE (JSON Lines; "
+                             "see mstc replay and mstc report)")
     parser.add_argument("--step-timeout", type=positive, default=10.0, metavar="SECONDS",
                         help="an agent's longest wait for one step's reports (default 10)")
     parser.add_argument("--stall-timeout", type=positive, default=30.0, metavar="SECONDS",
@@ -52,30 +65,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object at the end")
 
 
-def kill_order(text: str) -> tuple[int, int]:
+def kill_order(text: str) -> KillOrder:
     robot, sep, step = text.partition("@")
     if not sep or not (robot.isascii() and robot.isdigit() and step.isascii()
                        and step.isdigit()):
         raise argparse.ArgumentTypeError(f"expected ROBOT@STEP such as 2@10, got {text!r}")
-    return int(robot), int(step)
+    return KillOrder(int(robot), step=int(step))
 
 
 def run(args: argparse.Namespace) -> int:
     tree = tree_from_spec(args.tree)
-    victims = [robot for robot, _ in args.kill]
+    victims = [order.robot for order in args.kill]
     if any(robot >= args.robots for robot in victims):
         raise UsageError(f"--kill {max(victims)}@...: robots are 0..{args.robots - 1}")
     if len(set(victims)) != len(victims) or len(victims) >= args.robots:
         raise UsageError("--kill: each robot at most once, and one robot must survive")
+    if args.record is not None and not args.record.parent.is_dir():
+        raise UsageError(f"--record {args.record}: directory {args.record.parent} does not exist")
     lockstep = run_coverage(tree, args.robots, args.algo)  # also rejects infeasible inputs
-    mission = unique_mission()
+    mission = args.mission or unique_mission()
     options = TreeFleetOptions(
         tree=args.tree, robots=args.robots, algo=args.algo, mission=mission,
         run_dir=default_run_dir(mission) if args.run_dir is None else args.run_dir,
-        endpoint=args.listen, lease_ms=args.lease_ms, step_timeout=args.step_timeout,
-        stall_timeout=args.stall_timeout, kills=tuple(args.kill), settle=args.settle)
+        endpoint=args.listen or free_endpoint(), lease_ms=args.lease_ms,
+        step_timeout=args.step_timeout, stall_timeout=args.stall_timeout,
+        kills=tuple(args.kill), settle=args.settle)
     say = (lambda _text: None) if args.json else (lambda text: print(text, flush=True))
-    outcome = asyncio.run(TreeFleet(options, say).run())
+    connection = ConnectionSettings(connect=(options.endpoint or "",), mission=mission,
+                                    lease_ms=options.lease_ms)
+    outcome = run_recorded(TreeFleet(options, say).run(), connection, args.record,
+                           "tree-fleet")
     deaths = outcome.observed.deaths
     lockstep_cuts = 0
     if deaths:

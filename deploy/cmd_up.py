@@ -9,12 +9,11 @@ Exit codes: 0 complete; 1 incomplete (stalled, robots all lost, a process failed
 from __future__ import annotations
 
 import argparse
-import asyncio
 import time
 from pathlib import Path
 
 from bus.argtypes import positive, positive_int, time_scale
-from bus.config import DEFAULT_ENDPOINT, DEFAULT_LEASE_MS
+from bus.config import DEFAULT_ENDPOINT, DEFAULT_LEASE_MS, ConnectionSettings
 from deploy.errors import FleetError, UsageError
 from deploy.fleet import (
     check_port_free,
@@ -38,6 +37,7 @@ from deploy.settings import (
     parse_kill,
     stall_timeout,
 )
+from deploy.supervisor import run_recorded
 from planner.trees import ALL_TREE_KINDS
 
 ALGOS = ("nb", "bt", "opt", "ormstc")
@@ -143,12 +143,7 @@ def run(args: argparse.Namespace) -> int:
     setup = MissionSetup.plan(settings)  # loads the map and plans: user mistakes stop here
     endpoint = endpoint_of(settings)
     started = time.monotonic()
-    main = launch(setup, settings, endpoint, started)
-    if settings.record is None:
-        return asyncio.run(main)
-    from bus.config import ConnectionSettings
-    from deploy.monitor.app import recorded
-
     connection = ConnectionSettings(connect=(endpoint,), mission=settings.mission,
                                     lease_ms=settings.lease_ms)
-    return asyncio.run(recorded(main, connection, settings.record))
+    return run_recorded(launch(setup, settings, endpoint, started), connection,
+                        settings.record, "up")

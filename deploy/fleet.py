@@ -25,7 +25,7 @@ import socket
 import subprocess
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +34,10 @@ from deploy.errors import FleetError
 RUNS_ROOT = Path("runs")
 FLEET_FILE = "fleet.json"
 SUMMARY_FILE = "summary.json"
-LAUNCHER = "up"
+LAUNCHER = "up"  # the launcher's role and name in fleet.json, whichever command it is
+# Stopping order by role: agents first (they would report a vanished world as a failure),
+# then the world processes, the router last (everyone's link).
+SHUTDOWN_ORDER = {"agent": 0, "simhw": 1, "radio": 1, "router": 2}
 
 
 @dataclass(frozen=True)
@@ -42,7 +45,7 @@ class ProcessRecord:
     """One process of a fleet as written to fleet.json."""
 
     name: str
-    role: str  # "up", "router", "simhw" or "agent"
+    role: str  # "up" (the launcher), "router", "simhw", "radio" or "agent"
     pid: int
     started: int | None  # start time in clock ticks since boot (/proc/<pid>/stat field 22)
     log: str = ""
@@ -51,7 +54,9 @@ class ProcessRecord:
 
 @dataclass(frozen=True)
 class FleetInfo:
-    """What ``mstc kill`` and ``mstc down`` need to know about a running fleet."""
+    """What ``mstc kill``, ``mstc down`` and ``mstc monitor`` need to know about a running
+    fleet. ``kind`` "grid" (mstc up: ``world`` is a map) or "tree" (mstc tree-fleet: ``world``
+    is the tree spec, no simulated bodies)."""
 
     mission: str
     endpoint: str
@@ -63,16 +68,21 @@ class FleetInfo:
     time_scale: float
     created: float
     processes: tuple[ProcessRecord, ...] = field(default_factory=tuple)
+    kind: str = "grid"
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
 
+    def to_fields(self) -> dict[str, Any]:
+        """The constructor's arguments (``processes`` left as records)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> FleetInfo:
         procs = tuple(ProcessRecord(**p) for p in data.get("processes", ()))
-        fields = {k: v for k, v in data.items() if k != "processes"}
-        fields["starts"] = tuple((int(r), int(c)) for r, c in fields.get("starts", ()))
-        return cls(**fields, processes=procs)
+        values = {k: v for k, v in data.items() if k != "processes"}
+        values["starts"] = tuple((int(r), int(c)) for r, c in values.get("starts", ()))
+        return cls(**values, processes=procs)
 
     def agent(self, robot: int) -> ProcessRecord:
         for proc in self.processes:

@@ -3,15 +3,14 @@
 One asyncio loop and one TaskGroup (world poller + watcher). The bus session of the launcher
 is opened before simhw and the agents start, so no start-up message is missed; coverage is
 the simhw ground truth (live CoverEvents, and the WorldState query every POLL_S as the
-authority). Children are stopped agents first, then simhw, then the router, each with
-SIGTERM and a SIGKILL after a grace period, whatever ended the mission (also exceptions).
+authority). The processes, signals, kill schedule, fleet.json and the ordered shutdown are
+deploy.supervisor's, shared with ``mstc tree-fleet``.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import os
 import signal
 import time
 from dataclasses import dataclass
@@ -31,25 +30,15 @@ from bus.messages import (
 )
 from bus.router import READY_MARK as ROUTER_READY
 from deploy.errors import FleetError
-from deploy.fleet import (
-    LAUNCHER,
-    Child,
-    FleetInfo,
-    ProcessRecord,
-    RunDir,
-    mstc_argv,
-    start_ticks,
-    stop_children,
-    wait_ready,
-)
+from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
 from deploy.progress import ProgressView, make_progress
 from deploy.settings import MissionSetup, UpSettings
 from deploy.summary import MissionTracker, format_summary, summarize
+from deploy.supervisor import KillSchedule, Supervisor
 
 SIMHW_READY = "simhw ready"
 POLL_S = 0.5
 TICK_S = 0.1
-STOP_GRACE_S = 5.0
 # Agent exit codes (agent/main.py): 0 done or left, 4 fenced; anything else is a failure.
 AGENT_DONE, AGENT_FENCED = 0, 4
 
@@ -66,10 +55,11 @@ class Launcher:
     def __init__(self, setup: MissionSetup, settings: UpSettings, endpoint: str,
                  run_dir: RunDir, view: ProgressView) -> None:
         self.setup = setup
-        self.orders = list(settings.kills)
+        self.kills = KillSchedule(settings.kills)
         self.endpoint = endpoint
         self.mission = settings.mission
         self.run_dir = run_dir
+        self.supervisor = Supervisor(run_dir)
         self.settings = settings
         self.view = view
         self.own_router = settings.own_router
@@ -78,9 +68,8 @@ class Launcher:
         self.agents: list[Child] = []
         self.tracker = MissionTracker(setup.reachable, setup.k)
         self.t0 = time.monotonic()
-        self.stop = asyncio.Event()
-        self.wake = asyncio.Event()  # set when a percent-triggered kill may be due
-        self.stop_signal: int | None = None
+        # set when a percent-triggered kill may be due (and by a stopping signal)
+        self.wake = self.supervisor.wake
         self.failed_verdict = ""
         self.killed_at: dict[int, float] = {}  # robots failed by us, until a peer notices
         self._reported: set[str] = set()
@@ -93,12 +82,14 @@ class Launcher:
                 "--lease-ms", str(self.settings.lease_ms)]
 
     def _spawn(self, name: str, role: str, argv: list[str], robot: int | None = None) -> Child:
-        child = Child(name, role, argv, self.run_dir.log_path(name), robot)
-        self.run_dir.write_pid(child.record)
-        return child
+        return self.supervisor.spawn(name, role, argv, robot)
 
     async def _wait_ready(self, child: Child, mark: str, timeout: float) -> None:
-        await wait_ready(child, mark, timeout, self.stop)
+        await self.supervisor.wait_ready(child, mark, timeout)
+
+    @property
+    def stop(self) -> asyncio.Event:
+        return self.supervisor.stop
 
     async def start_router(self) -> None:
         if self.own_router:
@@ -128,26 +119,17 @@ class Launcher:
                         f"algo {s.algo}, run dir {self.run_dir.path}")
 
     def children(self) -> list[Child]:
-        return [c for c in (self.router, self.simhw, *self.agents) if c is not None]
+        return self.supervisor.children
 
     def write_fleet(self) -> None:
         s = self.setup
-        me = ProcessRecord(name=LAUNCHER, role=LAUNCHER, pid=os.getpid(),
-                           started=start_ticks(os.getpid()))
-        self.run_dir.write_pid(me)
-        self.run_dir.write_fleet(FleetInfo(
+        self.supervisor.write_fleet(FleetInfo(
             mission=self.mission, endpoint=self.endpoint, own_router=self.own_router,
             world=s.world, algo=s.algo, robots=s.k, starts=s.starts,
-            time_scale=s.time_scale, created=time.time(),
-            processes=(me, *(c.record for c in self.children()))))
+            time_scale=s.time_scale, created=time.time(), kind="grid"))
 
     def shutdown(self) -> None:
-        """Stop every child in order: agents, simhw, router (SIGTERM, then SIGKILL)."""
-        for group in (self.agents, [self.simhw], [self.router]):
-            stop_children([c for c in group if c is not None], STOP_GRACE_S)
-        for child in self.children():
-            self.run_dir.remove_pid(child.name)
-        self.run_dir.remove_pid(LAUNCHER)
+        self.supervisor.shutdown()
 
     # --- bus -------------------------------------------------------------------------------
 
@@ -164,9 +146,8 @@ class Launcher:
     def _on_cover(self, event: CoverEvent) -> None:
         # At time scale 0 a mission lasts about a second: check percent kills per cover, not
         # per tick, so that "2@progress=40" lands near 40 %.
-        if self.tracker.on_cover(event, time.monotonic()) and any(
-                o.percent is not None and self.tracker.coverage >= o.percent
-                for o in self.orders):
+        if self.tracker.on_cover(event, time.monotonic()) and \
+                self.kills.waits_on_coverage(self.tracker.coverage):
             self.wake.set()
 
     def _on_death(self, _key: str, notice: DeathNotice) -> None:
@@ -214,8 +195,8 @@ class Launcher:
             now = time.monotonic()
             outcome = self._check_children()
             if self.stop.is_set():
-                name = signal.Signals(self.stop_signal or signal.SIGINT).name
-                return Outcome(128 + (self.stop_signal or signal.SIGINT), f"stopped by {name}")
+                sig = self.supervisor.stop_signal or signal.SIGINT
+                return Outcome(128 + sig, f"stopped by {signal.Signals(sig).name}")
             if outcome is None and self.failed_verdict:
                 outcome = Outcome(1, f"an agent declared the mission failed: "
                                      f"{self.failed_verdict}")
@@ -289,19 +270,12 @@ class Launcher:
         return None
 
     async def _run_kills(self, bus: Bus, elapsed: float) -> None:
-        for order in list(self.orders):
-            due = (order.seconds is not None and elapsed >= order.seconds) or (
-                order.percent is not None and self.tracker.coverage >= order.percent)
-            if not due:
-                continue
-            self.orders.remove(order)
+        for order in self.kills.due(elapsed=elapsed, coverage=self.tracker.coverage):
             self.killed_at[order.robot] = time.monotonic()
             if order.hw:
                 await self._fail_body(bus, order.robot)
             else:
-                child = self.agents[order.robot]
-                child.expected_exit = True
-                child.signal(signal.SIGKILL)
+                self.supervisor.kill_agent(order.robot)
                 self.tracker.lose(order.robot, "killed by mstc up (SIGKILL)")
             self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] {order.describe()}: done "
                             f"(coverage {self.tracker.coverage:.1f} %)")
@@ -321,24 +295,6 @@ class Launcher:
         self._logged = len(self.tracker.log)
 
 
-def _install_signals(launcher: Launcher) -> list[int]:
-    loop = asyncio.get_running_loop()
-    handled: list[int] = []
-
-    def on_signal(sig: int) -> None:
-        launcher.stop_signal = sig
-        launcher.stop.set()
-        launcher.wake.set()
-
-    # SIGHUP too: closing the terminal must not orphan the children, which run in their own
-    # process sessions and so never see the terminal's hang-up themselves.
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        with contextlib.suppress(NotImplementedError, RuntimeError):
-            loop.add_signal_handler(sig, on_signal, sig)
-            handled.append(sig)
-    return handled
-
-
 async def launch(setup: MissionSetup, settings: UpSettings, endpoint: str, t0: float) -> int:
     """Run the whole fleet; return the exit code (see deploy.cmd_up)."""
     mission = settings.mission
@@ -346,29 +302,28 @@ async def launch(setup: MissionSetup, settings: UpSettings, endpoint: str, t0: f
     view = make_progress(settings.plain)
     launcher = Launcher(setup, settings, endpoint, rd, view)
     launcher.t0 = t0
-    handled = _install_signals(launcher)
     connection = ConnectionSettings(connect=(endpoint,), mission=mission,
                                     lease_ms=settings.lease_ms)
-    try:
-        await launcher.start_router()
-        async with Bus.connect(connection) as bus:
-            launcher.subscribe(bus)
-            await launcher.start_fleet()
-            outcome = await launcher.supervise(bus) if not launcher.stop.is_set() else \
-                Outcome(128 + (launcher.stop_signal or 2), "stopped during start-up")
-            await launcher.query_world(bus)
-        summary = summarize(launcher.tracker, mission=mission, world=setup.world,
-                            algo=setup.algo, wall_seconds=time.monotonic() - t0,
-                            planned_makespan=setup.planned_makespan, outcome=outcome.message)
-        view.close()
-        print(format_summary(summary), flush=True)
-        rd.write_summary(summary.to_json())
-        if outcome.code == 0 and not summary.complete:
-            return 1
-        return outcome.code
-    finally:
-        view.close()
-        launcher.shutdown()
-        loop = asyncio.get_running_loop()
-        for sig in handled:
-            loop.remove_signal_handler(sig)
+    with launcher.supervisor.signals_stop():
+        try:
+            await launcher.start_router()
+            async with Bus.connect(connection) as bus:
+                launcher.subscribe(bus)
+                await launcher.start_fleet()
+                outcome = await launcher.supervise(bus) if not launcher.stop.is_set() else \
+                    Outcome(128 + (launcher.supervisor.stop_signal or 2),
+                            "stopped during start-up")
+                await launcher.query_world(bus)
+            summary = summarize(launcher.tracker, mission=mission, world=setup.world,
+                                algo=setup.algo, wall_seconds=time.monotonic() - t0,
+                                planned_makespan=setup.planned_makespan,
+                                outcome=outcome.message)
+            view.close()
+            print(format_summary(summary), flush=True)
+            rd.write_summary(summary.to_json())
+            if outcome.code == 0 and not summary.complete:
+                return 1
+            return outcome.code
+        finally:
+            view.close()
+            launcher.shutdown()

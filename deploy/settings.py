@@ -49,16 +49,26 @@ _KILL_RE = re.compile(
 
 @dataclass(frozen=True)
 class KillOrder:
-    """Kill ``robot`` at ``seconds`` after the mission started, or at ``percent`` coverage.
-    ``hw`` fails its body in simhw instead of killing its process."""
+    """Kill ``robot`` at ``seconds`` after the mission started, at ``percent`` coverage, or
+    once ``step`` steps are complete (tree missions). ``hw`` fails its body in simhw instead
+    of killing its process."""
 
     robot: int
     seconds: float | None = None
     percent: float | None = None
     hw: bool = False
+    step: int | None = None
+
+    def is_due(self, elapsed: float | None, coverage: float | None,
+               step: int | None) -> bool:
+        return ((self.seconds is not None and elapsed is not None and elapsed >= self.seconds)
+                or (self.percent is not None and coverage is not None
+                    and coverage >= self.percent)
+                or (self.step is not None and step is not None and step >= self.step))
 
     def describe(self) -> str:
-        when = f"{self.seconds:g} s" if self.seconds is not None else f"{self.percent:g} %"
+        when = (f"{self.seconds:g} s" if self.seconds is not None else
+                f"{self.percent:g} %" if self.percent is not None else f"step {self.step}")
         what = "fail body of" if self.hw else "SIGKILL agent"
         return f"{what} {self.robot} at {when}"
 
