@@ -16,9 +16,10 @@ import time
 from dataclasses import dataclass
 
 from bus import keys
-from bus.bridge import BoundedFifo, Bus, LatestWins
+from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
 from bus.messages import (
+    MESSAGE_TYPES,
     AdminCommand,
     AdminReply,
     CoverEvent,
@@ -37,6 +38,7 @@ from deploy.summary import MissionTracker, format_summary, summarize
 from deploy.supervisor import KillSchedule, Supervisor
 
 SIMHW_READY = "simhw ready"
+SUB_BUFFER = 65536  # messages of every kind, as a monitor's feed (deploy.monitor.live)
 POLL_S = 0.5
 TICK_S = 0.1
 # Agent exit codes (agent/main.py): 0 done or left, 4 fenced; anything else is a failure.
@@ -134,14 +136,24 @@ class Launcher:
     # --- bus -------------------------------------------------------------------------------
 
     def subscribe(self, bus: Bus) -> None:
-        m, t = self.mission, self.tracker
-        bus.subscribe(keys.all_sim_covers(m), CoverEvent,
-                      lambda _k, ev: self._on_cover(ev), BoundedFifo(65536))
-        bus.subscribe(keys.all_statuses(m), RobotStatus, lambda _k, st: t.on_status(st),
-                      LatestWins())
-        bus.subscribe(keys.all_events(m), RobotEvent, lambda _k, ev: t.on_event(ev))
-        bus.subscribe(keys.all_deaths(m), DeathNotice, self._on_death)
-        bus.subscribe(keys.mission_status(m), MissionStatus, self._on_verdict)
+        """Every message of the mission, in order: all of them feed the model the summary's
+        figures are read from (as a monitor's would), some also the supervision."""
+        bus.subscribe(keys.everything(self.mission), tuple(MESSAGE_TYPES.values()),
+                      self._on_message, BoundedFifo(SUB_BUFFER))
+
+    def _on_message(self, key: str, msg: object) -> None:
+        t = self.tracker
+        t.observe(time.monotonic() - self.t0, key, msg)
+        if isinstance(msg, CoverEvent):
+            self._on_cover(msg)
+        elif isinstance(msg, RobotStatus):
+            t.on_status(msg)
+        elif isinstance(msg, RobotEvent):
+            t.on_event(msg)
+        elif isinstance(msg, DeathNotice):
+            self._on_death(key, msg)
+        elif isinstance(msg, MissionStatus):
+            self._on_verdict(key, msg)
 
     def _on_cover(self, event: CoverEvent) -> None:
         # At time scale 0 a mission lasts about a second: check percent kills per cover, not
@@ -170,6 +182,7 @@ class Launcher:
 
     async def query_world(self, bus: Bus) -> None:
         for reply in await bus.query(keys.world(self.mission), None, WorldState, timeout=2.0):
+            self.tracker.observe(time.monotonic() - self.t0, reply.key, reply.msg, "query")
             try:
                 self.tracker.on_world(reply.msg, time.monotonic())
             except ValueError as error:
@@ -205,7 +218,6 @@ class Launcher:
             if started is None and (t.announced == t.robots or t.covered > initial):
                 started = now
                 t.last_progress = now
-                t.sim_start = 0.0 if self.setup.time_scale == 0 else None
                 self.view.event(f"[{now - self.t0:6.1f}s] mission started: all robots up")
             elif started is None and now - self.t0 > start_timeout:
                 missing = sorted(set(range(t.robots)) - t.heard)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from bus.config import DEFAULT_LEASE_MS
 from deploy.errors import UsageError
-from deploy.summary import reachable_sub_cells
+from deploy.monitor.coverage import reachable_sub_cells
 from planner.grid import cell_of, coarsen, validate_starts, work_area
 from planner.maps import resolve_world
 from planner.pipeline import make_plan

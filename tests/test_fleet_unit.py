@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from agent.plan import compute_plan, plan_digest
-from bus import argtypes
+from bus import argtypes, keys
 from bus.messages import (
     CoverEvent,
     DeathNotice,
@@ -41,9 +41,10 @@ from deploy.fleet import (
     latest_run_dir,
     start_ticks,
 )
+from deploy.monitor.coverage import reachable_sub_cells
 from deploy.progress import PlainProgress
 from deploy.settings import KillOrder, MissionSetup, liveness, parse_kill, stall_timeout
-from deploy.summary import MissionTracker, format_summary, reachable_sub_cells, summarize
+from deploy.summary import MissionTracker, format_summary, summarize
 from planner.types import OccupancyGrid
 
 # --- kill orders ----------------------------------------------------------------------------
@@ -234,6 +235,7 @@ def test_world_state_is_the_authority_for_moves_and_failed_bodies() -> None:
     robots = (RobotTruth(0, (0, 0, 1), True, False, False, covered=6),
               RobotTruth(1, (1, 3, 0), False, False, True, covered=4))
     state = make_world_state("open", grid.free, visits, robots, 12.0, 0.0)
+    tracker.observe(1.0, keys.world("m"), state, "query")  # as the launcher does
     assert tracker.on_world(state, now=1.0)
     assert tracker.covered == 8
     assert [v.moves for v in tracker.views] == [5, 3]

@@ -63,6 +63,8 @@ class FleetModel:
         self.kinds: Counter[str] = Counter()
         self.deaths: dict[tuple[int, int], Death] = {}
         self.takeovers: list[tuple[float, int, int | None]] = []
+        # each robot's moves once the record that completed the coverage was applied
+        self.moves_at_coverage: dict[int, int] | None = None
         self._seen_events: set[tuple[Any, ...]] = set()
         self._new: list[MonitorEvent] = []
 
@@ -92,6 +94,8 @@ class FleetModel:
             handler(self, record, msg)
         else:
             self._other(record, msg)
+        if self.moves_at_coverage is None and self.cover.complete_at is not None:
+            self.moves_at_coverage = {r: v.moves for r, v in self.robots.items()}
         return self._new
 
     def _emit(self, t: float, kind: EventKind, robot: int | None, text: str) -> None:
