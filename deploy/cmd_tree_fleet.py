@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tree", required=True,
                         help="perfect:N=3,H=4 | general:N=2,H=6,remove=R,at=HEIGHT,seed=S | "
                              "office | FILE.tree")
-    parser.add_argument("--robots", type=positive_int, required=True, help="team size k")
+    parser.add_argument("-n", "--robots", type=positive_int, required=True, help="team size k")
     parser.add_argument("--algo", choices=["cocta", "ncocta"], default="cocta")
     parser.add_argument("--listen", metavar="ENDPOINT",
                         help="router endpoint (default: a free port on 127.0.0.1)")

@@ -46,8 +46,9 @@ ALGOS = ("nb", "bt", "opt", "ormstc")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-n", "--robots", type=positive_int, required=True, metavar="K",
                         help="number of robots (agent processes)")
-    parser.add_argument("--world", default="office", metavar="FILE|NAME",
-                        help="builtin world name or map file (default office)")
+    parser.add_argument("--world", "--map", dest="world", default="office", metavar="FILE|NAME",
+                        help="builtin world name or map file (default office; --map: the "
+                             "same option, as mstc plan spelled it)")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
                         help="offline MSTC variant the agents run, or ormstc (on-line; "
                              "its agents read no map) (default opt)")
