@@ -34,8 +34,10 @@ from planner.types import BoolArray, SubCell
 
 
 @dataclass
-class RobotView:
-    """What the launcher knows about one robot."""
+class SupervisedRobot:
+    """What the launcher needs about one robot to decide on the mission: its state, whether
+    it is lost (and why) or completed. The robot as the wire shows it in full is
+    deploy.monitor.robots.RobotView, in the tracker's model."""
 
     robot: int
     state: str = "starting"
@@ -88,7 +90,7 @@ class MissionTracker:
     reachable: BoolArray
     robots: int
     visits: np.ndarray = field(init=False)
-    views: list[RobotView] = field(init=False)
+    views: list[SupervisedRobot] = field(init=False)
     last_progress: float = 0.0
     takeovers: set[tuple[int, int | None]] = field(default_factory=set)
     heard: set[int] = field(default_factory=set)  # robots whose status was received
@@ -97,7 +99,7 @@ class MissionTracker:
 
     def __post_init__(self) -> None:
         self.visits = np.zeros(self.reachable.shape, dtype=np.int64)
-        self.views = [RobotView(r) for r in range(self.robots)]
+        self.views = [SupervisedRobot(r) for r in range(self.robots)]
         self.model = FleetModel(max_events=100)
 
     def observe(self, t: float, key: str, msg: object, via: Via = "sub") -> None:
