@@ -27,11 +27,10 @@ from deploy.errors import UsageError
 from deploy.fleet import default_run_dir, unique_mission
 from deploy.settings import KillOrder
 from deploy.supervisor import run_recorded
-from deploy.tree_fleet import TreeFleet, TreeFleetOptions, TreeFleetOutcome, free_endpoint
-from planner.treecover.failures import run_with_failures
+from deploy.tree_fleet import TreeFleet, TreeFleetOptions, free_endpoint
+from deploy.tree_verdict import format_verdict, lockstep_run, summarize
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import tree_from_spec
-from planner.treecover.types import CoverageResult, Tree
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -95,53 +94,11 @@ def run(args: argparse.Namespace) -> int:
                                     lease_ms=options.lease_ms)
     outcome = run_recorded(TreeFleet(options, say).run(), connection, args.record,
                            "tree-fleet")
-    deaths = outcome.observed.deaths
-    lockstep_cuts = 0
-    if deaths:
-        repaired = run_with_failures(tree, args.robots, args.algo, deaths)
-        lockstep, lockstep_cuts = repaired.result, repaired.cut_at_death
-    summary = summarize(tree, lockstep, outcome, lockstep_cuts)
-    if args.json:
-        print(json.dumps(summary))
-    else:
-        for key, value in summary.items():
-            print(f"{key:>22}: {value}")
+    lockstep, lockstep_cuts = lockstep_run(tree, args.robots, args.algo,
+                                           outcome.observed.deaths)
+    summary = summarize(tree, lockstep, outcome.observed, ok=outcome.ok,
+                        message=outcome.message, lockstep_cuts=lockstep_cuts,
+                        radio=outcome.radio, wall_seconds=outcome.wall_seconds,
+                        mission_seconds=outcome.mission_seconds)
+    print(json.dumps(summary) if args.json else format_verdict(summary))
     return 0 if summary["verdict"] == "ok" else 1
-
-
-def summarize(tree: Tree, lockstep: CoverageResult, outcome: TreeFleetOutcome,
-              lockstep_cuts: int = 0) -> dict[str, object]:
-    """The run's figures beside the lockstep run's (with the same failures, if any), and a
-    verdict: "ok" or every problem found."""
-    seen, radio = outcome.observed, outcome.radio
-    time = seen.coverage_time
-    problems = [] if outcome.ok else [outcome.message]
-    if time != lockstep.time:
-        problems.append(f"fleet coverage time {time} != lockstep {lockstep.time}")
-    if seen.visited != tree.n:
-        problems.append(f"visited {seen.visited} of {tree.n} nodes")
-    if not seen.connected or seen.jumps:
-        problems.append(f"connected at every step: {seen.connected}, jumps: {seen.jumps}")
-    if not lockstep.connected:
-        problems.append("the lockstep run with these failures was not connected at every step")
-    if seen.cut_at_death != lockstep_cuts:
-        problems.append(f"cut at {seen.cut_at_death} death steps, lockstep {lockstep_cuts}")
-    return {
-        "tree": tree.name, "nodes": tree.n, "height": tree.height,
-        "algo": lockstep.algo.value, "robots": lockstep.robots,
-        "split_heights": list(lockstep.splits.heights),
-        "coverage_time": time, "lockstep_time": lockstep.time,
-        "speedup": round(lockstep.single_time / time, 4) if time else None,
-        "visited": seen.visited, "connected_every_step": seen.connected,
-        "deaths": {str(robot): step for robot, step in sorted(seen.deaths.items())},
-        "cut_at_death": seen.cut_at_death,
-        "wall_seconds": round(outcome.wall_seconds, 2),
-        "mission_seconds": None if outcome.mission_seconds is None else
-        round(outcome.mission_seconds, 2),
-        "transmissions": seen.transmissions,
-        "deliveries": radio.deliveries if radio else None,
-        "refused_out_of_range": radio.refused if radio else None,
-        "radio_pending": radio.pending if radio else None,
-        "radio_dropped": (radio.unlocated + radio.spoofed) if radio else None,
-        "verdict": "ok" if not problems else "; ".join(problems),
-    }

@@ -24,6 +24,7 @@ from pathlib import Path
 from bus import keys
 from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
+from bus.messages import MissionStatus
 from bus.router import READY_MARK as ROUTER_READY
 from bus.tree_messages import RadioStats, TreeReport
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
@@ -117,7 +118,8 @@ class TreeFleet:
                           lambda _k, r: self._on_transmission(r),
                           BoundedFifo(1 << 20))
             await self._start(o)
-            ok, message = await self._watch()
+            ok, message = await self._watch(lambda: self._announce(bus))
+            self._announce(bus)  # once more: a short run may end before a recorder joined
             replies = await bus.query(keys.tree_radio(o.mission), None, RadioStats,
                                       timeout=2.0)
         radio = replies[0].msg if replies else None
@@ -151,7 +153,14 @@ class TreeFleet:
         self.say(f"fleet up: mission {o.mission} on {self.endpoint}, radio and {o.robots} "
                  f"agents ({o.algo}), run dir {self.run_dir.path}")
 
-    async def _watch(self) -> tuple[bool, str]:
+    def _announce(self, bus: Bus) -> None:
+        """The mission's set-up as its status, repeated: a recording or a monitor that joins
+        late learns which tree the robots cover (``mstc report`` judges the run with it)."""
+        o = self.options
+        bus.publish(keys.mission_status(o.mission), MissionStatus(
+            "running", "tree coverage", {"tree": o.tree, "algo": o.algo, "robots": o.robots}))
+
+    async def _watch(self, announce: Callable[[], None]) -> tuple[bool, str]:
         """Until every agent has ended, something failed, or no step completes for long."""
         o, seen = self.options, self.observer
         last_step, last_change, last_print = -1, time.monotonic(), 0.0
@@ -173,6 +182,7 @@ class TreeFleet:
                                f"{last_step}); agent logs in {self.run_dir.logs}")
             if now - last_print >= 1.0:
                 last_print = now
+                announce()
                 self.say(f"[{now - self.t0:6.1f}s] step {max(last_step, 0)}: visited "
                          f"{seen.visited}/{len(seen.seen)} nodes, "
                          f"{seen.transmissions} transmissions")

@@ -218,7 +218,14 @@ def test_mstc_kill_and_down_act_on_a_tree_fleet(tmp_path: Path) -> None:
         assert fleet.returncode == 0, out
         assert re.search(r"verdict: ok$", out, re.MULTILINE), out
         assert re.search(r"deaths: \{'2': \d+\}", out), out
-        assert record.stat().st_size > 0
+        # the recording alone gives the launcher's verdict and figures
+        report = subprocess.run(mstc("report", str(record), "--json"), capture_output=True,
+                                text=True, timeout=RUN_LIMIT)
+        assert report.returncode == 0, report.stdout + report.stderr
+        judged = json.loads(report.stdout)
+        assert judged["verdict"] == "ok" and "2" in judged["deaths"]
+        assert re.search(rf"coverage_time: {judged['coverage_time']}$", out, re.MULTILINE)
+        assert re.search(rf"deaths: \{{'2': {judged['deaths']['2']}\}}", out), out
 
         second_dir = tmp_path / "second"
         second = subprocess.Popen(
