@@ -16,7 +16,7 @@ from agent.types import AgentState, unpack_covered
 from bus import keys
 from bus.drops import DropCounter
 from bus.messages import DeathNotice, MissionStatus, Progress, RobotStatus
-from planner.takeover import OfflineRobot
+from planner.offline.machine import OfflineRobot
 from planner.types import SubCell
 
 

@@ -13,9 +13,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planner.grid import cell_of, work_area
-from planner.pipeline import make_plan
-from planner.takeover import check_replayable
+from planner.geometry import cell_of
+from planner.grid import work_area
+from planner.offline.machine import check_replayable
+from planner.offline.plan import make_plan
 from planner.trees import build_tree
 from planner.types import OccupancyGrid, Plan, SubCell
 

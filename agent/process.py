@@ -45,7 +45,7 @@ from bus.messages import (
 )
 from planner.errors import PlannerError
 from planner.maps import resolve_world
-from planner.takeover import OfflineRobot
+from planner.offline.machine import OfflineRobot
 from planner.types import Plan
 
 _log = logging.getLogger("mstc.agent")

@@ -1,6 +1,6 @@
 """Drives one robot's OfflineRobot state machine with the body and the bus.
 
-The machine (planner.takeover) decides; this module only carries its decisions out: a MoveTo
+The machine (planner.offline) decides; this module only carries its decisions out: a MoveTo
 becomes turns and a forward step of the body, then a Progress message; a takeover decision
 becomes RobotEvents; WaitFor waits for news (a death, coverage) and meanwhile pulls the
 others' re-learnable state, so coverage missed during a router outage is learned again.
@@ -16,7 +16,7 @@ from agent.peers import PeerTable
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import EventKind, Progress, RobotEvent
-from planner.takeover import Finished, MoveTo, OfflineRobot, WaitFor
+from planner.offline.machine import Finished, MoveTo, OfflineRobot, WaitFor
 
 
 class OfflineRunner:

@@ -32,7 +32,7 @@ from planner.balanced.plan import FALLBACK, WALK_OUT
 from planner.balanced.takeover import simulate_failures
 from planner.grid import WorkArea, expand, work_area
 from planner.invariants import check_plan
-from planner.pipeline import make_plan
+from planner.offline.plan import make_plan
 from planner.placement import random_starts
 from planner.trees import build_tree
 from planner.types import OccupancyGrid, Plan

@@ -16,8 +16,8 @@ import numpy as np
 
 from planner.grid import coarsen, largest_component
 from planner.maps.worlds import builtin_world
+from planner.ormstc.lockstep import SimConfig, simulate
 from planner.types import OccupancyGrid, SubCell
-from simhw.lockstep import SimConfig, simulate
 
 
 def random_starts(world: OccupancyGrid, k: int, seed: int) -> list[SubCell]:

@@ -8,9 +8,10 @@ process publishes an OrmstcClaim as robot 0 (real codec and QoS), an echo proces
 each with a claim of robot 1, and the round trip is timed; half of it bounds the one-way
 delay the claim window must exceed twice. fleet: full missions (router, ``mstc simhw
 --time-scale X`` (default 0), k ``mstc agent --algo ormstc``) from seeded random starts (one
-robot per cell), against ``simhw.lockstep.simulate`` on the same world and starts: coverage time in
-moves (most moves of any robot) distributed / lockstep, ORMSTC messages and bytes per robot
-per move (every message heard on ``ormstc/*``, bytes as encoded), and wall time; each
+robot per cell), against ``planner.ormstc.lockstep.simulate`` on the same world and starts:
+coverage time in moves (most moves of any robot) distributed / lockstep, ORMSTC messages and
+bytes per robot per move (every message heard on ``ormstc/*``, bytes as encoded), and wall time;
+each
 robot's look steps (LookStep: steps aside and back made only to sense, which the lockstep
 model does not make) and the ratio without them.
 """
@@ -46,9 +47,9 @@ from bus.messages import (
 from bus.router import start_router_process, stop_process
 from planner.grid import coarsen
 from planner.maps import resolve_world
+from planner.ormstc.lockstep import SimConfig, simulate
 from planner.ormstc.types import SenseMode
 from planner.types import OccupancyGrid, SubCell
-from simhw.lockstep import SimConfig, simulate
 
 MISSION = "bench-ormstc"
 

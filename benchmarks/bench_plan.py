@@ -18,7 +18,7 @@ import time
 from planner.grid import work_area
 from planner.maps import resolve_world
 from planner.metrics import plan_metrics
-from planner.pipeline import make_plan
+from planner.offline.plan import make_plan
 from planner.placement import random_starts
 from planner.trees import build_tree
 

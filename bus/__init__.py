@@ -1,10 +1,11 @@
 """The Zenoh wire of mstc-swarm (schema and rules: docs/protocol.md).
 
-keys      every key expression (no other module builds key strings)
-messages  frozen message dataclasses, registered by kind
-codec     strict, versioned msgpack encode/decode
+messages  frozen message dataclasses by subject (bus/messages/) and the wire schema
+          (bus/messages/schema.py: per kind its class, key families, QoS class, generation)
+keys      every key expression, built and parsed from the schema's key families
+codec     strict, versioned msgpack encode/decode of the schema's kinds
 drops     DropCounter for malformed and overflowing messages
-qos       priority / congestion control per message kind
+qos       the Zenoh priority / congestion control of each QoS class of the schema
 config    command-line options -> ConnectionSettings -> zenoh.Config; open_session
 bridge    Bus: asyncio pub/sub, queries, queryables and liveliness over one session
 liveness  FailureDetector (sans-I/O), HeartbeatPublisher, LivelinessService

@@ -1,10 +1,10 @@
-"""Strict msgpack codec for the messages of bus.messages.
+"""Strict msgpack codec for the message kinds of the wire schema (bus.messages.schema).
 
 A payload is one msgpack map: ``{"_kind": KIND, "_v": SCHEMA_VERSION, <field>: <value>...}``
 (records nested inside are plain maps of their fields; tuples are arrays). Decoding is strict
 because robots act on what they hear: wrong kind, a version newer than ours or older than the
-kind's last change (``bus.messages.version_problem``), missing or extra fields, wrong types and
-oversized payloads all raise DecodeError, and the caller counts the drop.
+kind's last change (``bus.messages.schema.version_problem``), missing or extra fields, wrong
+types and oversized payloads all raise DecodeError, and the caller counts the drop.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from typing import Any, Literal, TypeVar, Union, get_args, get_origin
 import msgpack
 
 from bus.errors import DecodeError, EncodeError
-from bus.messages import MESSAGE_TYPES, RECORD_TYPES, SCHEMA_VERSION, version_problem
+from bus.messages.schema import MESSAGE_TYPES, RECORD_TYPES, SCHEMA_VERSION, version_problem
 
 DEFAULT_MAX_PAYLOAD = 64 * 1024
 KIND_FIELD = "_kind"

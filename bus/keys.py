@@ -1,35 +1,10 @@
-"""Every Zenoh key expression of the project, built in one place.
+"""Every Zenoh key expression of the project, built and parsed from the key families of the
+wire schema (bus.messages.schema; the layout is listed in docs/protocol.md, "Keys").
 
 All keys live under ``mstc/<mission>/``. Robots are non-negative integers. No other module
-builds key strings: a subscriber that wants "all robots" calls the ``all_*`` function, and
-a process that needs the robot back out of a received key calls :func:`parse`.
-Layout (``<r>`` robot id, ``<i>`` incarnation)::
-
-    mstc/<m>/hb/<r>                 Heartbeat
-    mstc/<m>/status/<r>             RobotStatus (hello, re-announced)
-    mstc/<m>/progress/<r>           Progress
-    mstc/<m>/event/<r>              RobotEvent
-    mstc/<m>/look/<r>               LookStep (ORMSTC: a step made only to sense)
-    mstc/<m>/death/<r>              DeathNotice (<r> = the dead robot)
-    mstc/<m>/alive/<r>/<i>          liveliness token
-    mstc/<m>/state/<r>              queryable: the robot's re-learnable state
-    mstc/<m>/ormstc/tree/<r>        ORMSTC tree edges (payload types: ORMSTC work)
-    mstc/<m>/ormstc/claim/<r>       ORMSTC cell claims
-    mstc/<m>/ormstc/conn/<r>        ORMSTC connections
-    mstc/<m>/ormstc/start/<r>       ORMSTC start sub-cell
-    mstc/<m>/ormstc/dead/<r>        ORMSTC "robot x is dead, its cells are free"
-    mstc/<m>/ormstc/done/<r>        ORMSTC completion
-    mstc/<m>/ormstc/withdraw/<r>    ORMSTC withdrawal of a completion
-    mstc/<m>/hw/<r>/cmd             queryable (simhw): HwCommand -> HwReply
-    mstc/<m>/hw/admin               queryable (simhw): AdminCommand -> AdminReply
-    mstc/<m>/sim/pose/<r>           GroundTruthPose (sim only)
-    mstc/<m>/sim/cover/<r>          CoverEvent (sim only)
-    mstc/<m>/sim/bump/<r>           BumpEvent (sim only)
-    mstc/<m>/sim/world              queryable (simhw): WorldState
-    mstc/<m>/mission                MissionStatus (also answered on mstc/<m>/state/mission)
-    mstc/<m>/tree/robot/<r>/outbox  TreeReport a tree-coverage robot transmits (radio's input)
-    mstc/<m>/tree/robot/<r>/inbox   TreeReport the radio lets through to robot <r>
-    mstc/<m>/tree/radio             queryable (radio): RadioStats
+builds key strings: a publisher calls a builder (or :func:`build` with a family's label), a
+subscriber that wants "all robots" calls the ``all_*`` function (or :func:`wildcard`), and a
+process that needs the robot back out of a received key calls :func:`parse`.
 """
 
 from __future__ import annotations
@@ -38,14 +13,18 @@ import re
 from dataclasses import dataclass
 
 from bus.errors import KeyExprError
+from bus.messages.schema import FAMILIES, INCARNATION, ROBOT, KeyFamily
 
 ROOT = "mstc"
 _MISSION_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
-# Robot-scoped kinds whose key is mstc/<m>/<kind>/<robot>.
-_PER_ROBOT = ("hb", "status", "progress", "event", "death", "state", "look")
-_ORMSTC = ("tree", "claim", "conn", "start", "dead", "done", "withdraw")
-_SIM = ("pose", "cover", "bump")
+_BY_LABEL: dict[str, KeyFamily] = {fam.label: fam for fam in FAMILIES}
+# parse looks only at the families of a key's length and first chunk
+_BY_SHAPE: dict[tuple[int, str], tuple[KeyFamily, ...]] = {}
+for _fam in FAMILIES:
+    _shape = (len(_fam.chunks), _fam.chunks[0])
+    _BY_SHAPE[_shape] = (*_BY_SHAPE.get(_shape, ()), _fam)
+_ORMSTC = tuple(fam.chunks[1] for fam in FAMILIES if fam.chunks[0] == "ormstc")
 
 
 def check_mission(mission: str) -> str:
@@ -66,118 +45,136 @@ def _base(mission: str) -> str:
     return f"{ROOT}/{check_mission(mission)}"
 
 
+def _family(label: str) -> KeyFamily:
+    fam = _BY_LABEL.get(label)
+    if fam is None:
+        raise KeyExprError(f"unknown key family {label!r}")
+    return fam
+
+
+def build(label: str, mission: str, robot: int | None = None,
+          incarnation: int | None = None) -> str:
+    """The concrete key of family ``label`` (e.g. "hb", "tree/outbox") for these ids; the
+    family's ids must all be given, and no others."""
+    fam = _family(label)
+    base = _base(mission)
+    if (robot is not None) != (ROBOT in fam.chunks) \
+            or (incarnation is not None) != (INCARNATION in fam.chunks):
+        raise KeyExprError(f"key family {label!r} is {fam.path!r}: give exactly its ids")
+    path = fam.path.format(robot="" if robot is None else _robot(robot),
+                           incarnation="" if incarnation is None else _robot(incarnation))
+    return f"{base}/{path}"
+
+
+def wildcard(label: str, mission: str) -> str:
+    """Every key of family ``label`` in ``mission`` (each id chunk a ``*``)."""
+    return f"{_base(mission)}/{_family(label).path.format(robot='*', incarnation='*')}"
+
+
 def everything(mission: str) -> str:
     """Every key of one mission (for recorders and monitors)."""
     return f"{_base(mission)}/**"
 
 
-def _per_robot(kind: str, mission: str, robot: int) -> str:
-    return f"{_base(mission)}/{kind}/{_robot(robot)}"
-
-
-def _all(kind: str, mission: str) -> str:
-    return f"{_base(mission)}/{kind}/*"
-
-
 def heartbeat(mission: str, robot: int) -> str:
-    return _per_robot("hb", mission, robot)
+    return build("hb", mission, robot)
 
 
 def all_heartbeats(mission: str) -> str:
-    return _all("hb", mission)
+    return wildcard("hb", mission)
 
 
 def status(mission: str, robot: int) -> str:
-    return _per_robot("status", mission, robot)
+    return build("status", mission, robot)
 
 
 def all_statuses(mission: str) -> str:
-    return _all("status", mission)
+    return wildcard("status", mission)
 
 
 def progress(mission: str, robot: int) -> str:
-    return _per_robot("progress", mission, robot)
+    return build("progress", mission, robot)
 
 
 def all_progress(mission: str) -> str:
-    return _all("progress", mission)
+    return wildcard("progress", mission)
 
 
 def events(mission: str, robot: int) -> str:
-    return _per_robot("event", mission, robot)
+    return build("event", mission, robot)
 
 
 def all_events(mission: str) -> str:
-    return _all("event", mission)
+    return wildcard("event", mission)
 
 
 def look_steps(mission: str, robot: int) -> str:
-    return _per_robot("look", mission, robot)
+    return build("look", mission, robot)
 
 
 def all_look_steps(mission: str) -> str:
-    return _all("look", mission)
+    return wildcard("look", mission)
 
 
 def death(mission: str, robot: int) -> str:
     """Where death notices *about* ``robot`` are published."""
-    return _per_robot("death", mission, robot)
+    return build("death", mission, robot)
 
 
 def all_deaths(mission: str) -> str:
-    return _all("death", mission)
+    return wildcard("death", mission)
 
 
 def alive(mission: str, robot: int, incarnation: int) -> str:
     """Liveliness token key; the incarnation is in it because tokens aggregate per key."""
-    return f"{_per_robot('alive', mission, robot)}/{_robot(incarnation)}"
+    return build("alive", mission, robot, incarnation)
 
 
 def all_alive(mission: str) -> str:
-    return f"{_base(mission)}/alive/*/*"
+    return wildcard("alive", mission)
 
 
 def state(mission: str, robot: int) -> str:
     """Queryable answering a robot's current state messages (late joiners, router restart)."""
-    return _per_robot("state", mission, robot)
+    return build("state", mission, robot)
 
 
 def mission_state(mission: str) -> str:
     """Queryable of the mission status holder; matched by :func:`all_states` too."""
-    return f"{_base(mission)}/state/mission"
+    return build("state/mission", mission)
 
 
 def all_states(mission: str) -> str:
-    return _all("state", mission)
+    return wildcard("state", mission)
 
 
 def ormstc_tree(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/ormstc/tree/{_robot(robot)}"
+    return build("ormstc/tree", mission, robot)
 
 
 def ormstc_claim(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/ormstc/claim/{_robot(robot)}"
+    return build("ormstc/claim", mission, robot)
 
 
 def ormstc_conn(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/ormstc/conn/{_robot(robot)}"
+    return build("ormstc/conn", mission, robot)
 
 
 def ormstc_start(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/ormstc/start/{_robot(robot)}"
+    return build("ormstc/start", mission, robot)
 
 
 def ormstc_dead(mission: str, robot: int) -> str:
     """Where robot ``robot`` says another robot is dead (the dead one is in the payload)."""
-    return f"{_base(mission)}/ormstc/dead/{_robot(robot)}"
+    return build("ormstc/dead", mission, robot)
 
 
 def ormstc_done(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/ormstc/done/{_robot(robot)}"
+    return build("ormstc/done", mission, robot)
 
 
 def ormstc_withdraw(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/ormstc/withdraw/{_robot(robot)}"
+    return build("ormstc/withdraw", mission, robot)
 
 
 def all_ormstc(mission: str, what: str = "*") -> str:
@@ -188,74 +185,75 @@ def all_ormstc(mission: str, what: str = "*") -> str:
 
 
 def hw_cmd(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/hw/{_robot(robot)}/cmd"
+    return build("hw/cmd", mission, robot)
 
 
 def all_hw_cmds(mission: str) -> str:
-    return f"{_base(mission)}/hw/*/cmd"
+    return wildcard("hw/cmd", mission)
 
 
 def hw_admin(mission: str) -> str:
-    return f"{_base(mission)}/hw/admin"
+    return build("hw/admin", mission)
 
 
 def sim_pose(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/sim/pose/{_robot(robot)}"
+    return build("sim/pose", mission, robot)
 
 
 def all_sim_poses(mission: str) -> str:
-    return f"{_base(mission)}/sim/pose/*"
+    return wildcard("sim/pose", mission)
 
 
 def sim_cover(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/sim/cover/{_robot(robot)}"
+    return build("sim/cover", mission, robot)
 
 
 def all_sim_covers(mission: str) -> str:
-    return f"{_base(mission)}/sim/cover/*"
+    return wildcard("sim/cover", mission)
 
 
 def sim_bump(mission: str, robot: int) -> str:
-    return f"{_base(mission)}/sim/bump/{_robot(robot)}"
+    return build("sim/bump", mission, robot)
 
 
 def all_sim_bumps(mission: str) -> str:
-    return f"{_base(mission)}/sim/bump/*"
+    return wildcard("sim/bump", mission)
 
 
 def world(mission: str) -> str:
-    return f"{_base(mission)}/sim/world"
+    return build("sim/world", mission)
 
 
 def mission_status(mission: str) -> str:
-    return f"{_base(mission)}/mission"
+    return build("mission", mission)
 
 
 def tree_outbox(mission: str, robot: int) -> str:
     """What tree-coverage robot ``robot`` transmits; only the radio subscribes to it."""
-    return f"{_base(mission)}/tree/robot/{_robot(robot)}/outbox"
+    return build("tree/outbox", mission, robot)
 
 
 def all_tree_outboxes(mission: str) -> str:
-    return f"{_base(mission)}/tree/robot/*/outbox"
+    return wildcard("tree/outbox", mission)
 
 
 def tree_inbox(mission: str, robot: int) -> str:
     """What the radio delivers to ``robot`` (transmissions from robots in range)."""
-    return f"{_base(mission)}/tree/robot/{_robot(robot)}/inbox"
+    return build("tree/inbox", mission, robot)
 
 
 def all_tree_inboxes(mission: str) -> str:
-    return f"{_base(mission)}/tree/robot/*/inbox"
+    return wildcard("tree/inbox", mission)
 
 
 def tree_radio(mission: str) -> str:
-    return f"{_base(mission)}/tree/radio"
+    return build("tree/radio", mission)
 
 
 @dataclass(frozen=True)
 class ParsedKey:
-    """What a received key says: ``kind`` is e.g. "hb", "alive", "ormstc/tree", "hw/cmd"."""
+    """What a received key says: ``kind`` is its family's label, e.g. "hb", "alive",
+    "ormstc/tree", "hw/cmd", "tree/outbox"."""
 
     mission: str
     kind: str
@@ -267,36 +265,29 @@ def _int(chunk: str) -> int | None:
     return int(chunk) if chunk.isascii() and chunk.isdigit() else None
 
 
+def _match(fam: KeyFamily, mission: str, rest: list[str]) -> ParsedKey | None:
+    ids: dict[str, int] = {}
+    for chunk, part in zip(fam.chunks, rest, strict=True):
+        if chunk in (ROBOT, INCARNATION):
+            value = _int(part)
+            if value is None:
+                return None
+            ids[chunk] = value
+        elif chunk != part:
+            return None
+    return ParsedKey(mission, fam.label, ids.get(ROBOT), ids.get(INCARNATION))
+
+
 def parse(key: str) -> ParsedKey | None:
     """Parse a concrete key of this project; None if it is not one (foreign or malformed)."""
     parts = str(key).split("/")
     if len(parts) < 3 or parts[0] != ROOT or not _MISSION_RE.match(parts[1]):
         return None
     mission, rest = parts[1], parts[2:]
-    head = rest[0]
-    if len(rest) == 2 and head in _PER_ROBOT:
-        if head == "state" and rest[1] == "mission":
-            return ParsedKey(mission, "state/mission")
-        robot = _int(rest[1])
-        return None if robot is None else ParsedKey(mission, head, robot)
-    if len(rest) == 3 and head == "alive":
-        robot, inc = _int(rest[1]), _int(rest[2])
-        if robot is None or inc is None:
-            return None
-        return ParsedKey(mission, "alive", robot, inc)
-    if len(rest) == 3 and head in ("ormstc", "sim") and rest[1] in _ORMSTC + _SIM:
-        robot = _int(rest[2])
-        return None if robot is None else ParsedKey(mission, f"{head}/{rest[1]}", robot)
-    if rest == ["hw", "admin"]:
-        return ParsedKey(mission, "hw/admin")
-    if len(rest) == 3 and head == "hw" and rest[2] == "cmd":
-        robot = _int(rest[1])
-        return None if robot is None else ParsedKey(mission, "hw/cmd", robot)
-    if len(rest) == 4 and rest[:2] == ["tree", "robot"] and rest[3] in ("outbox", "inbox"):
-        robot = _int(rest[2])
-        return None if robot is None else ParsedKey(mission, f"tree/{rest[3]}", robot)
-    if rest in (["sim", "world"], ["mission"], ["tree", "radio"]):
-        return ParsedKey(mission, "/".join(rest))
+    for fam in _BY_SHAPE.get((len(rest), rest[0]), ()):
+        parsed = _match(fam, mission, rest)
+        if parsed is not None:
+            return parsed
     return None
 
 

@@ -1,10 +1,10 @@
-"""Quality of service per message kind: priority, congestion control, express.
+"""Quality of service: what each QoS class of the wire schema means to Zenoh.
 
-Heartbeats get a priority of their own (INTERACTIVE_HIGH) so that a burst of data cannot
-queue behind them or delay them into a false suspicion. Events, death notices and mission
-status are small and must not be lost to a full queue, so they BLOCK (at most Zenoh's 5 s
-before the transport is closed); streams whose newest value supersedes the old one (poses,
-progress, ground truth) DROP under congestion.
+Which class a kind has is its row in bus.messages.schema. Heartbeats get a priority of their
+own (INTERACTIVE_HIGH) so that a burst of data cannot queue behind them or delay them into a
+false suspicion. Events, death notices and mission status are small and must not be lost to a
+full queue, so they BLOCK (at most Zenoh's 5 s before the transport is closed); streams whose
+newest value supersedes the old one (poses, progress, ground truth) DROP under congestion.
 """
 
 from __future__ import annotations
@@ -14,8 +14,7 @@ from typing import Any
 
 import zenoh
 
-from bus import messages as m
-from bus import tree_messages as tm
+from bus.messages.schema import KINDS, QosClass
 
 
 @dataclass(frozen=True)
@@ -33,30 +32,17 @@ BULK = Qos(zenoh.Priority.DATA_LOW, zenoh.CongestionControl.DROP)
 
 DEFAULT = STREAM
 
-_BY_TYPE: dict[type[Any], Qos] = {
-    m.Heartbeat: HEARTBEAT,
-    m.RobotEvent: CRITICAL,
-    m.LookStep: CRITICAL,  # a lost one would make a report see a coverage revisit
-    m.DeathNotice: CRITICAL,
-    m.MissionStatus: CRITICAL,
-    m.RobotStatus: CRITICAL,
-    m.HwCommand: CONTROL,
-    m.HwReply: CONTROL,
-    m.AdminCommand: CONTROL,
-    m.AdminReply: CONTROL,
-    m.Progress: STREAM,
-    m.GroundTruthPose: STREAM,
-    m.CoverEvent: STREAM,
-    m.BumpEvent: STREAM,
-    m.WorldState: BULK,
-    # one priority for every ORMSTC kind keeps each sender's messages in order across keys
-    **{t: CRITICAL for t in m.ORMSTC_MESSAGES},
-    # a lost tree report stalls the whole team's step: never drop it under congestion
-    tm.TreeReport: CRITICAL,
-    tm.RadioStats: CONTROL,
+BY_CLASS: dict[QosClass, Qos] = {
+    QosClass.HEARTBEAT: HEARTBEAT,
+    QosClass.CRITICAL: CRITICAL,
+    QosClass.CONTROL: CONTROL,
+    QosClass.STREAM: STREAM,
+    QosClass.BULK: BULK,
 }
+
+_BY_TYPE: dict[type[Any], Qos] = {kind.type: BY_CLASS[kind.qos] for kind in KINDS}
 
 
 def qos_for(msg_type: type[Any]) -> Qos:
-    """The default QoS of a message type (STREAM for types not listed)."""
-    return _BY_TYPE.get(msg_type, STREAM)
+    """The default QoS of a message type (STREAM for types not in the schema)."""
+    return _BY_TYPE.get(msg_type, DEFAULT)

@@ -9,10 +9,11 @@ from typing import Any
 
 from bus.argtypes import positive_int
 from deploy.errors import UsageError
-from planner.grid import cell_of, work_area
+from planner.geometry import cell_of
+from planner.grid import work_area
 from planner.maps import resolve_world
 from planner.metrics import PlanMetrics, plan_metrics
-from planner.pipeline import make_plan
+from planner.offline.plan import make_plan
 from planner.placement import parse_starts, random_starts
 from planner.trees import ALL_TREE_KINDS, build_tree
 from planner.types import Plan

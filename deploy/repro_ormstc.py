@@ -21,9 +21,9 @@ import numpy as np
 from planner.errors import PlannerError
 from planner.grid import coarsen, expand, label_components, largest_component
 from planner.maps.worlds import builtin_world
+from planner.ormstc.lockstep import SimConfig, SimResult, simulate
 from planner.ormstc.types import SenseMode
 from planner.types import OccupancyGrid, SubCell
-from simhw.lockstep import SimConfig, SimResult, simulate
 
 WORLDS = ("cave", "room")
 SCENARIOS = ("none", "one", "k-1")

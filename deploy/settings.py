@@ -14,9 +14,10 @@ from pathlib import Path
 from bus.config import DEFAULT_LEASE_MS
 from deploy.errors import UsageError
 from deploy.monitor.coverage import reachable_sub_cells
-from planner.grid import cell_of, coarsen, validate_starts, work_area
+from planner.geometry import cell_of
+from planner.grid import coarsen, validate_starts, work_area
 from planner.maps import resolve_world
-from planner.pipeline import make_plan
+from planner.offline.plan import make_plan
 from planner.placement import parse_starts, random_starts
 from planner.trees import build_tree
 from planner.types import BoolArray, OccupancyGrid, SubCell
@@ -123,7 +124,7 @@ class MissionSetup:
             # ORMSTC plans nothing (its agents get no map); the lockstep simulator's coverage
             # time on the same world and starts stands in for the planned makespan, and it
             # rejects two robots in one cell before any process starts.
-            from simhw.lockstep import simulate
+            from planner.ormstc.lockstep import simulate
 
             planned = simulate(grid, starts).makespan
         else:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.errors import DisconnectedRobotsError, EmptyMapError, RobotPlacementError
-from planner.types import BoolArray, Cell, CoarseGrid, IntArray, OccupancyGrid, SubCell
+from planner.types import BoolArray, CoarseGrid, IntArray, OccupancyGrid, SubCell
 
 
 def coarsen(grid: OccupancyGrid) -> CoarseGrid:
@@ -86,16 +86,6 @@ def _smallest_in_component(size: int, first: IntArray, second: IntArray) -> IntA
             if np.array_equal(grand, parent):
                 break
             parent = grand
-
-
-def cell_of(sub: SubCell) -> Cell:
-    return (sub[0] // 2, sub[1] // 2)
-
-
-def sub_cells_of(cell: Cell) -> tuple[SubCell, SubCell, SubCell, SubCell]:
-    """The four sub-cells of a cell: top-left, bottom-left, bottom-right, top-right."""
-    r, c = 2 * cell[0], 2 * cell[1]
-    return ((r, c), (r + 1, c), (r + 1, c + 1), (r, c + 1))
 
 
 def expand(cells: BoolArray) -> BoolArray:

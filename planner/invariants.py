@@ -12,7 +12,8 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from planner.grid import WorkArea, cell_of, expand, label_linked
+from planner.geometry import cell_of
+from planner.grid import WorkArea, expand, label_linked
 from planner.types import BoolArray, Cycle, Plan, SpanningTree, SubCell
 
 _SHOWN = 5  # how many offending items a message lists

@@ -14,8 +14,10 @@ from enum import Enum
 import numpy as np
 import numpy.typing as npt
 
-SubCell = tuple[int, int]
-Cell = tuple[int, int]
+# planner.geometry's, re-exported beside the value types that use them
+from planner.geometry import Cell as Cell
+from planner.geometry import SubCell as SubCell
+
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.int64]
 

@@ -1,48 +1,21 @@
 """Value types of the simulated RV-400 world: poses, outcomes, readings and ground-truth records.
 
-Coordinates are sub-cells (row, col) with rows growing downwards, as in planner.types. Headings
-are 0 = north (row - 1), 1 = east (col + 1), 2 = south, 3 = west; a left turn is -1 mod 4.
+Coordinates, headings and poses are planner.geometry's (headings clockwise from 0 = north).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum, IntEnum
+from enum import Enum
 from typing import Literal
 
-SubCell = tuple[int, int]
+# planner.geometry's, re-exported beside the world's own types
+from planner.geometry import Heading as Heading
+from planner.geometry import Pose as Pose
+from planner.geometry import Side as Side
+from planner.geometry import SubCell as SubCell
 
 SENSORS: tuple[str, ...] = ("front", "left", "right")
-
-
-class Heading(IntEnum):
-    N = 0
-    E = 1
-    S = 2
-    W = 3
-
-    @property
-    def delta(self) -> SubCell:
-        """One sub-cell step in this heading, as (d_row, d_col)."""
-        return _DELTAS[self]
-
-    def turned(self, side: Side) -> Heading:
-        return Heading((self + (1 if side is Side.RIGHT else -1)) % 4)
-
-    def towards(self, sensor: str) -> Heading:
-        """The heading a sonar looks along: "front", "left" or "right" of this heading."""
-        if sensor == "front":
-            return self
-        return self.turned(Side.LEFT if sensor == "left" else Side.RIGHT)
-
-
-_DELTAS: dict[Heading, SubCell] = {
-    Heading.N: (-1, 0), Heading.E: (0, 1), Heading.S: (1, 0), Heading.W: (0, -1)}
-
-
-class Side(Enum):
-    LEFT = "left"
-    RIGHT = "right"
 
 
 class BodyStatus(Enum):
@@ -63,24 +36,6 @@ class BumpCause(Enum):
     OBSTACLE = "obstacle"
     EDGE = "edge"
     BODY = "body"
-
-
-@dataclass(frozen=True)
-class Pose:
-    row: int
-    col: int
-    heading: Heading = Heading.N
-
-    @property
-    def sub(self) -> SubCell:
-        return (self.row, self.col)
-
-    def ahead(self, steps: int = 1) -> SubCell:
-        dr, dc = self.heading.delta
-        return (self.row + steps * dr, self.col + steps * dc)
-
-    def as_tuple(self) -> tuple[int, int, int]:
-        return (self.row, self.col, int(self.heading))
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 
 from planner.balanced import Partition, balanced_plan, partition
 from planner.balanced.plan import FALLBACK, WALK_OUT
-from planner.grid import expand, label_components, sub_cells_of, work_area
+from planner.geometry import sub_cells_of
+from planner.grid import expand, label_components, work_area
 from planner.invariants import check_plan
 from planner.placement import random_starts
 from planner.types import OccupancyGrid, SubCell

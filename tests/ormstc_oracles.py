@@ -7,8 +7,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from planner.grid import coarsen, expand, label_components
+from planner.ormstc.lockstep import SimResult
 from planner.types import BoolArray, OccupancyGrid, SubCell
-from simhw.lockstep import SimResult
 
 
 def must_cover(world: OccupancyGrid, starts: Sequence[SubCell],

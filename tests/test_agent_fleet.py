@@ -1,7 +1,7 @@
 """The offline-MSTC fleet end to end: a router, ``mstc simhw`` and k ``mstc agent`` processes.
 
 Oracles: the pure planner (the plan the agents must follow, computed here independently),
-simhw's ground truth (every sub-cell each body entered, in order) and planner.takeover's
+simhw's ground truth (every sub-cell each body entered, in order) and planner.offline's
 lockstep semantics for the robots killed with SIGKILL.
 """
 
@@ -41,7 +41,7 @@ from bus.messages import (
 )
 from planner.grid import work_area
 from planner.maps import resolve_world
-from planner.takeover import simulate_failures
+from planner.offline.lockstep import simulate_failures
 from planner.types import Plan, SubCell
 
 pytestmark = pytest.mark.integration
@@ -221,7 +221,7 @@ async def test_fleet_follows_the_plan_and_covers_everything(
 
 
 def lockstep_failures(plan: Plan, moves: dict[int, int]) -> dict[int, int]:
-    """Failure times under which planner.takeover gives each dead robot ``moves`` moves.
+    """Failure times under which planner.offline gives each dead robot ``moves`` moves.
 
     A robot that died while still on its own walk died at time = its moves; one that died
     later (waiting or taking over) is fitted by search, earlier deaths first."""

@@ -22,7 +22,7 @@ from bus.drops import DropCounter
 from bus.messages import DeathNotice, HwCommand, Progress, RobotStatus
 from planner.errors import PlannerError
 from planner.invariants import check_path_moves
-from planner.takeover import Finished, MoveTo, OfflineRobot, WaitFor
+from planner.offline.machine import Finished, MoveTo, OfflineRobot, WaitFor
 from planner.types import OccupancyGrid, Plan, SubCell
 from simhw.clock import FastClock
 from simhw.dead_bodies import on_death

@@ -13,8 +13,8 @@ from planner.cycle import stc_cycle
 from planner.errors import RobotPlacementError
 from planner.grid import WorkArea, expand, work_area
 from planner.invariants import check_plan
-from planner.pipeline import make_plan
-from planner.plan_builder import build_plan
+from planner.offline.build import build_plan
+from planner.offline.plan import make_plan
 from planner.types import OccupancyGrid, SpanningTree, SubCell
 
 

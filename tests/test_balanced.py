@@ -25,7 +25,8 @@ from planner.balanced.plan import WALK_OUT
 from planner.balanced.seeds import open_walk_ok, share_cell
 from planner.balanced.takeover import simulate_failures
 from planner.errors import UnsupportedPlanError
-from planner.grid import expand, label_components, sub_cells_of, work_area
+from planner.geometry import sub_cells_of
+from planner.grid import expand, label_components, work_area
 from planner.invariants import check_coverage, check_path_moves, check_plan
 from planner.placement import random_starts
 from planner.types import OccupancyGrid, SubCell

@@ -31,7 +31,8 @@ from planner.balanced.regions import _partition_state
 from planner.balanced.relocate import relocation_routes
 from planner.balanced.state import PartitionState, articulation_points
 from planner.balanced.takeover import simulate_failures
-from planner.grid import WorkArea, expand, label_components, sub_cells_of, work_area
+from planner.geometry import sub_cells_of
+from planner.grid import WorkArea, expand, label_components, work_area
 from planner.invariants import check_path_moves, check_plan
 from planner.placement import random_starts
 from planner.types import OccupancyGrid, SubCell

@@ -17,6 +17,7 @@ from bus import codec
 from bus.codec import decode, decode_any, encode
 from bus.errors import DecodeError, EncodeError
 from bus.messages import (
+    KIND_SINCE,
     MESSAGE_TYPES,
     NO_ROBOT,
     RECORD_TYPES,
@@ -131,12 +132,12 @@ def test_strict_decoding_rejects(mutate: Any, match: str) -> None:
 
 def test_a_kind_is_read_from_every_generation_since_its_last_change() -> None:
     """Progress is unchanged since generation 1: payloads of generations 1..now decode; a
-    kind registered with SINCE = g refuses older payloads and says why."""
+    kind listed with since = g refuses older payloads and says why."""
     sent = Progress(robot=1, incarnation=0, seq=3, cell=(2, 4), sim_time=1.5)
     raw = msgpack.unpackb(encode(sent), raw=False)
     for version in range(1, SCHEMA_VERSION + 1):
         assert decode(pack(dict(raw, _v=version)), Progress) == sent
-    assert MESSAGE_TYPES["agent_state"].SINCE == 2
+    assert KIND_SINCE["agent_state"] == 2
     state = AgentState(robot=0, incarnation=0, state="done", moves=1, n=0, covered=b"",
                        dead=(), took_over=())
     old = dict(msgpack.unpackb(encode(state), raw=False), _v=1)

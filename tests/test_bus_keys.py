@@ -62,7 +62,8 @@ def test_parse_inverts_every_builder(mission: str, robot: int, incarnation: int)
 
 @pytest.mark.parametrize("key", ["", "mstc", "other/m/hb/1", "mstc/m/hb/x", "mstc/m/hb/-1",
                                  "mstc/m/hb/1/2", "mstc/m/alive/1", "mstc/m/nope/1",
-                                 "mstc/m*/hb/1", "mstc/m/hw/1/reply"])
+                                 "mstc/m*/hb/1", "mstc/m/hw/1/reply", "mstc/m/sim/tree/1",
+                                 "mstc/m/ormstc/pose/1", "mstc/m/state/x"])
 def test_foreign_keys_do_not_parse(key: str) -> None:
     assert keys.parse(key) is None
     assert keys.kind_of(key) == "foreign"

@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planner.cycle import order_robots, stc_cycle
-from planner.grid import label_components, sub_cells_of, work_area
+from planner.geometry import sub_cells_of
+from planner.grid import label_components, work_area
 from planner.invariants import (
     InvariantViolation,
     check_coverage,

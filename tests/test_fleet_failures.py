@@ -3,7 +3,7 @@ simhw and agents on loopback, every victim and kill point drawn from the test's 
 failing id reproduces the scenario.
 
 - Offline MSTC: 1..k-1 agents SIGKILLed part-way through their sections; simhw's ground truth
-  is compared with planner.takeover's lockstep semantics for the same failures.
+  is compared with planner.offline's lockstep semantics for the same failures.
 - ORMSTC: 1..k-1 agents SIGKILLed; every sub-cell the survivors can reach around the dead
   bodies is covered and each victim's cells are taken over; the same through
   ``mstc up --algo ormstc --kill``.
@@ -46,7 +46,7 @@ from bus import keys
 from bus.bridge import Bus
 from bus.messages import WorldState, world_visits
 from planner.maps import resolve_world
-from planner.takeover import TakeoverResult, simulate_failures
+from planner.offline.lockstep import TakeoverResult, simulate_failures
 from planner.types import OccupancyGrid, Plan, SubCell
 
 pytestmark = pytest.mark.integration

@@ -38,7 +38,7 @@ from deploy.monitor.recorder import read_recording
 from deploy.monitor.report import build_report
 from planner.grid import work_area
 from planner.maps import resolve_world
-from planner.pipeline import make_plan
+from planner.offline.plan import make_plan
 from planner.trees import build_tree
 from planner.types import Plan, RobotPlan
 

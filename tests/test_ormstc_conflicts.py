@@ -19,25 +19,29 @@ from test_ormstc_sim import random_starts, random_world
 
 from planner.ormstc.conflicts import restate, winner_of
 from planner.ormstc.knowledge import Knowledge
+from planner.ormstc.lockstep import LockstepSim, SimConfig, SimResult
 from planner.ormstc.machine import OrmstcMachine
 from planner.ormstc.types import (
+    AliveResult,
     Cell,
     CellStatus,
     CompletionMsg,
     Done,
     Event,
+    IsAlive,
     MachineConfig,
     Move,
     MoveResult,
     PeerMessage,
     Priority,
+    Sense,
+    SenseResult,
     StartMsg,
     SubCell,
     Tick,
     TreeEdgeMsg,
 )
 from planner.ormstc.walk import cell_of
-from simhw.lockstep import LockstepSim, SimConfig, SimResult
 
 FAR: SubCell = (200, 200)  # the peer's start: far from everything the machine sees
 
@@ -61,7 +65,8 @@ class Driver:
 
     def __init__(self, robot: int, peer: int) -> None:
         self.machine = OrmstcMachine(
-            MachineConfig(robot=robot, team=2, start=(0.0, 0.0), claim_wait=1.0), Room(3))
+            MachineConfig(robot=robot, team=2, start=(0.0, 0.0), claim_wait=1.0))
+        self.room = Room(3)
         self.now = 0.0
         self.visits: list[SubCell] = []
         self.done = False
@@ -71,12 +76,21 @@ class Driver:
         self.now += 1
         events: list[Event] = [Tick(self.now), *self.pending, *extra]
         self.pending = []
-        for request in self.machine.step(events):
-            if isinstance(request, Move):
-                self.visits.append(request.to)
-                self.pending.append(MoveResult(True))
-            elif isinstance(request, Done):
-                self.done = True
+        requests = self.machine.step(events)
+        while requests:
+            reply: Event | None = None  # sensing and liveness are answered within the step
+            for request in requests:
+                if isinstance(request, Move):
+                    self.visits.append(request.to)
+                    self.pending.append(MoveResult(True))
+                elif isinstance(request, Sense):
+                    reply = SenseResult(tuple((c, self.room.cell_status(c))
+                                              for c in request.cells))
+                elif isinstance(request, IsAlive):
+                    reply = AliveResult(request.robot, self.room.is_alive(request.robot))
+                elif isinstance(request, Done):
+                    self.done = True
+            requests = self.machine.step((reply,)) if reply is not None else []
 
     def run_until(self, moves: int) -> None:
         while self.machine.moves < moves:

@@ -50,9 +50,9 @@ from bus.messages import (
     world_visits,
 )
 from planner.maps import parse_ascii
+from planner.ormstc.lockstep import simulate
 from planner.ormstc.types import CellStatus
 from planner.types import OccupancyGrid, SubCell
-from simhw.lockstep import simulate
 from simhw.sensors import sonar_range
 from simhw.types import Heading
 

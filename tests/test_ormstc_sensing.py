@@ -1,6 +1,6 @@
 """The ORMSTC driver's thin-sonar sensing on worlds whose obstacles fill only part of a cell.
 
-Oracles: the exact cell status of simhw.lockstep (a cell is an obstacle if any of its four
+Oracles: the exact cell status of planner.ormstc.lockstep (a cell is an obstacle if any of its four
 sub-cells is blocked or off the map), with the readings cast by simhw's own ``sonar_range``;
 and, for whole missions of one robot, the sub-cells the lockstep simulator covers from the
 same start. A stand-in body (no processes) answers ``agent.ormstc_body.look``.
@@ -35,6 +35,7 @@ from agent.ormstc_sensing import (
 )
 from bus.messages import Sensor
 from planner.grid import coarsen
+from planner.ormstc.lockstep import SimConfig, simulate
 from planner.ormstc.machine import OrmstcMachine
 from planner.ormstc.types import (
     AliveResult,
@@ -51,7 +52,6 @@ from planner.ormstc.types import (
     Tick,
 )
 from planner.types import OccupancyGrid
-from simhw.lockstep import SimConfig, simulate
 from simhw.sensors import sonar_range
 from simhw.types import Heading
 
@@ -59,7 +59,7 @@ NOBODY: BodyTest = lambda _cell: False  # noqa: E731 - only static obstacles in 
 
 
 def exact(blocked: np.ndarray, cell: Cell) -> CellStatus:
-    """simhw.lockstep's rule: any blocked or off-map sub-cell makes the cell an obstacle."""
+    """The lockstep's rule: any blocked or off-map sub-cell makes the cell an obstacle."""
     h, w = blocked.shape
     hit = any(not (0 <= r < h and 0 <= c < w) or blocked[r, c] for r, c in sub_cells(cell))
     return CellStatus.OBSTACLE if hit else CellStatus.FREE

@@ -17,9 +17,9 @@ from ormstc_oracles import missed, must_cover
 from planner.cycle import stc_cycle
 from planner.errors import RobotPlacementError
 from planner.grid import coarsen, largest_component
+from planner.ormstc.lockstep import SimConfig, SimResult, simulate
 from planner.ormstc.types import Priority, SenseMode
 from planner.types import OccupancyGrid, SpanningTree, SubCell
-from simhw.lockstep import SimConfig, SimResult, simulate
 
 
 def random_world(seed: int, h: int, w: int, density: float) -> OccupancyGrid:
@@ -200,7 +200,7 @@ def test_instant_answers_change_nothing(world: OccupancyGrid, k: int, seed: int,
     # the simulator answers sensing and liveness inside step() (``instant``); answering the
     # Sense / IsAlive requests one round trip at a time, as an agent does, must give the
     # same run, with failures, random delays and both sensing modes
-    from simhw.lockstep import LockstepSim
+    from planner.ormstc.lockstep import LockstepSim
 
     starts = random_starts(world, k, seed)
     victims = data.draw(st.lists(st.integers(0, len(starts) - 1), max_size=len(starts) - 1,

@@ -14,7 +14,8 @@ from planner.cycle import order_robots, stc_cycle
 from planner.errors import UnsupportedPlanError
 from planner.grid import expand, label_components, work_area
 from planner.invariants import check_coverage, check_path_moves, check_plan
-from planner.takeover import Takeover, region_of, simulate_failures
+from planner.offline.lockstep import Takeover, simulate_failures
+from planner.offline.machine import region_of
 from planner.trees import TREE_KINDS, build_tree
 from planner.types import (
     Cycle,
@@ -325,16 +326,16 @@ def test_allocation_plans_survive_failures(cycle: Cycle, data: st.DataObject) ->
     assert_consistent(plan, failures)
 
 
-HAVE_PIPELINE = importlib.util.find_spec("planner.pipeline") is not None
+HAVE_PIPELINE = importlib.util.find_spec("planner.offline.plan") is not None
 
 
-@pytest.mark.skipif(not HAVE_PIPELINE, reason="planner.pipeline is not written yet")
+@pytest.mark.skipif(not HAVE_PIPELINE, reason="planner.offline.plan is not written yet")
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), data=st.data())
 def test_pipeline_plans_pass_check_plan_and_survive_failures(seed: int,
                                                              data: st.DataObject) -> None:
     from planner.allocation import ALGORITHMS
-    from planner.pipeline import make_plan
+    from planner.offline.plan import make_plan
 
     rng = np.random.default_rng(seed)
     free = rng.random((6, 7)) >= 0.2

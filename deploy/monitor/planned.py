@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from planner.grid import cell_of, work_area
+from planner.geometry import cell_of
+from planner.grid import work_area
 from planner.trees import build_tree
 from planner.types import BoolArray, Cell, OccupancyGrid, SubCell
 

@@ -32,7 +32,8 @@ from scipy.sparse.csgraph import maximum_bipartite_matching, shortest_path
 
 from planner.balanced.relocate import cell_distances, sub_cell_route
 from planner.balanced.state import PartitionState, articulation_points
-from planner.grid import WorkArea, cell_of, sub_cells_of
+from planner.geometry import cell_of, sub_cells_of
+from planner.grid import WorkArea
 from planner.types import IntArray, SubCell
 
 SPACING = 4  # cells between robot starts kept as seeds

@@ -15,7 +15,7 @@ from collections import defaultdict
 from planner.balanced.seeds import share_cell
 from planner.balanced.state import SHARED, UNCLAIMED, PartitionState
 from planner.balanced.types import LeafCell
-from planner.grid import cell_of
+from planner.geometry import cell_of
 from planner.types import Cell
 
 

@@ -8,13 +8,19 @@ from planner.balanced.coverage import region_path
 from planner.balanced.regions import plan_regions
 from planner.cycle import stc_cycle
 from planner.grid import WorkArea
-from planner.pipeline import make_plan
+from planner.offline.plan import make_plan
 from planner.trees import build_tree
-from planner.types import Plan, RobotPlan
+from planner.types import Plan, RobotPlan, SpanningTree
 
 ALGO = "balanced"
 WALK_OUT = "balanced walk-out"  # note prefix of plans in which some sub-cells are revisited
 FALLBACK = "balanced fallback"  # note prefix of plans that are optimal MSTC instead
+
+
+def plan_for(area: WorkArea, tree: SpanningTree, algo: str, seed: int = 0) -> Plan:
+    """The registry's entry point (planner.algorithms): regions make their own tree."""
+    del tree, algo
+    return balanced_plan(area, seed=seed)
 
 
 def balanced_plan(area: WorkArea, *, seed: int = 0) -> Plan:

@@ -13,7 +13,7 @@ average load with the walks was already the lower bound + 4).
 from __future__ import annotations
 
 from planner.balanced.state import PartitionState
-from planner.grid import cell_of
+from planner.geometry import cell_of
 from planner.types import SubCell
 
 Routes = dict[int, tuple[SubCell, ...]]

@@ -26,7 +26,8 @@ from planner.balanced.relocate import relocation_routes, squeezed, sub_cell_rout
 from planner.balanced.state import PartitionState, articulation_points
 from planner.balanced.types import Partition
 from planner.balanced.voronoi import adopt, voronoi_labels
-from planner.grid import WorkArea, cell_of, sub_cells_of
+from planner.geometry import cell_of, sub_cells_of
+from planner.grid import WorkArea
 from planner.types import SubCell
 
 BOXED_SHORTFALL = 8  # sub-cells (two cells) below the best size before a robot is sent out

@@ -17,7 +17,8 @@ from collections import deque
 from collections.abc import Iterable, Sequence
 
 from planner.balanced.state import PartitionState, articulation_points
-from planner.grid import WorkArea, cell_of, sub_cells_of
+from planner.geometry import cell_of, sub_cells_of
+from planner.grid import WorkArea
 from planner.types import SubCell
 
 SQUEEZED = 8  # sub-cells (two cells) below the average before a seed is moved

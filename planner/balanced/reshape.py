@@ -15,7 +15,7 @@ from collections import deque
 import numpy as np
 
 from planner.balanced.state import PartitionState, splits
-from planner.grid import cell_of
+from planner.geometry import cell_of
 
 WHOLE = 4
 

@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from itertools import product
 
-from planner.grid import sub_cells_of
+from planner.geometry import sub_cells_of
 from planner.types import Cell, SubCell
 
 # (dr, dc) from the cell to its anchor

@@ -10,13 +10,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.allocation import allocate
+from planner.allocation import ALGORITHMS, allocate
 from planner.cycle import stc_cycle
 from planner.experiments.instances import based_sub_cells, random_sub_cells
 from planner.trees import build_tree
 from planner.types import BoolArray
 
-ALGOS = ("nb", "bt", "opt")
+ALGOS = ALGORITHMS  # the paper's three allocations, in its order: nb, bt, opt
 
 
 @dataclass(frozen=True)

@@ -24,8 +24,7 @@ the same rotational sense, so their bodies follow each other rather than meet he
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
+from planner.ormstc.robot import Robot
 from planner.ormstc.types import (
     Cell,
     CompletionMsg,
@@ -38,16 +37,13 @@ from planner.ormstc.types import (
 )
 from planner.ormstc.walk import cell_of, side_towards
 
-if TYPE_CHECKING:
-    from planner.ormstc.machine import OrmstcMachine
-
 
 def winner_of(robot: int, other: int) -> int:
     """Who keeps a cell both own: the higher id."""
     return max(robot, other)
 
 
-def settle(m: OrmstcMachine) -> None:
+def settle(m: Robot) -> None:
     """Resolve the conflicts heard since the last step; cut off passages now leaves."""
     know = m.know
     while know.conflicts:
@@ -65,7 +61,7 @@ def settle(m: OrmstcMachine) -> None:
         _cut(m, cell, m.ceded.pop(cell))
 
 
-def _hand_over(m: OrmstcMachine, cell: Cell, winner: int) -> None:
+def _hand_over(m: Robot, cell: Cell, winner: int) -> None:
     """``cell`` is ``winner``'s now, and so is deciding its neighbours; it stays a passage
     of the own tree until it can be cut off."""
     know = m.know
@@ -80,7 +76,7 @@ def _hand_over(m: OrmstcMachine, cell: Cell, winner: int) -> None:
     know.changed = True  # a watching robot re-scans its connections
 
 
-def _may_cut(m: OrmstcMachine, cell: Cell) -> bool:
+def _may_cut(m: Robot, cell: Cell) -> bool:
     parent = m.parent.get(cell)
     if parent is None or m.edges.get(cell, 0) != 1 << side_towards(cell, parent):
         return False  # the robot's root, or a cell with children: a passage for good
@@ -90,7 +86,7 @@ def _may_cut(m: OrmstcMachine, cell: Cell) -> bool:
     return not (isinstance(asked, Move) and cell_of(asked.to) == cell)
 
 
-def _cut(m: OrmstcMachine, cell: Cell, winner: int) -> None:
+def _cut(m: Robot, cell: Cell, winner: int) -> None:
     """Remove the leaf ``cell`` from the own tree; connect to its new owner."""
     parent = m.parent.pop(cell)
     m.edges[parent] = m.edges.get(parent, 0) & ~(1 << side_towards(parent, cell))
@@ -104,7 +100,7 @@ def _cut(m: OrmstcMachine, cell: Cell, winner: int) -> None:
     m.cut += 1
 
 
-def restate(m: OrmstcMachine) -> list[Message]:
+def restate(m: Robot) -> list[Message]:
     """What the peers must know of this robot and may have missed: its start, the tree
     edges of the cells it owns (passages excluded), the dead robots it freed, and whether
     it is finished. Hearing any of it twice changes nothing (Knowledge is idempotent)."""

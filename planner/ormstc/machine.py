@@ -9,22 +9,23 @@ tick the machine while it has nothing else to say. Nothing assumes lockstep deli
 messages may come late and in any order across senders (FIFO per sender is assumed).
 
 The algorithm is written as one generator (the recursive DFS of Alg. 2 unrolled into the STC
-walk around the growing tree); ``step`` resumes it when what it waits for has arrived. A driver
-that knows the ground truth (the lockstep simulator) may pass ``instant`` answers: sensing and
-liveness are then asked through it inside ``step`` instead of as Sense / IsAlive requests,
-which is the same as answering those requests at once, minus a round trip per question.
-Lines 21-36 (completion, watching, takeover) are in planner/ormstc/watch.py, the
-resolution of two live owners of one cell in planner/ormstc/conflicts.py.
+walk around the growing tree); ``step`` resumes it when what it waits for has arrived. Every
+driver answers the same Sense / IsAlive requests — the lockstep simulator from its ground
+truth within the step, the agent from simhw and its peer table — so the papers' figures and
+the fleet run one sensing path. Lines 21-36 (completion, watching, takeover) are in
+planner/ormstc/watch.py, the resolution of two live owners of one cell in
+planner/ormstc/conflicts.py.
 """
 
 from __future__ import annotations
 
 import random
-from collections.abc import Generator, Iterable
+from collections.abc import Iterable
 
 from planner.ormstc.conflicts import settle
 from planner.ormstc.connections import Connections
 from planner.ormstc.knowledge import Knowledge
+from planner.ormstc.robot import ANSWER, FINISHED, UNTIL, WAKE, Flow
 from planner.ormstc.types import (
     AliveResult,
     Broadcast,
@@ -34,7 +35,6 @@ from planner.ormstc.types import (
     ConnectionMsg,
     DeadRobotMsg,
     Event,
-    InstantAnswers,
     IsAlive,
     MachineConfig,
     Message,
@@ -54,18 +54,15 @@ from planner.ormstc.types import (
 from planner.ormstc.walk import DELTA, SIDE_AT, cell_of, neighbour
 from planner.ormstc.watch import watch
 
-_ANSWER, _UNTIL, _WAKE, _FINISHED = 0, 1, 2, 3
-Action = tuple[int, object]
-Flow = Generator[Action, object, object]
+_ANSWER, _UNTIL, _WAKE, _FINISHED = ANSWER, UNTIL, WAKE, FINISHED  # locals of the hot loop
 _HEADING = {delta: side for side, delta in enumerate(DELTA)}
 
 
 class OrmstcMachine:
     """One robot's ORMSTC controller. Public state is read-only for drivers and tests."""
 
-    def __init__(self, config: MachineConfig, instant: InstantAnswers | None = None) -> None:
+    def __init__(self, config: MachineConfig) -> None:
         self.config = config
-        self.instant = instant
         self.me = config.robot
         # a claim heard at t is decided by t + wait and its edge heard by t + wait + D, with
         # D <= (wait + 1) / 2; 2 wait + 1 is past both
@@ -95,7 +92,7 @@ class OrmstcMachine:
         self.done_sent = False
         self._heading: int | None = None
         self._rng = random.Random(config.seed * 1_000_003 + config.robot)
-        self._out: list[Request] = []
+        self.outbox: list[Request] = []
         self._gen: Flow = self._run()
         self._wait = _ANSWER
         self._wait_until = 0.0
@@ -127,7 +124,7 @@ class OrmstcMachine:
             settle(self)  # planner/ormstc/conflicts.py
         if self._ready():
             self._advance()
-        out, self._out = self._out, []
+        out, self.outbox = self.outbox, []
         return out
 
     def wake_time(self) -> float | None:
@@ -178,7 +175,7 @@ class OrmstcMachine:
             self._wait = kind
             if kind == _ANSWER:
                 self.asked = arg  # type: ignore[assignment]
-                self._out.append(arg)  # type: ignore[arg-type]
+                self.outbox.append(arg)  # type: ignore[arg-type]
                 value = self._answer
                 if value is None:
                     return
@@ -189,26 +186,26 @@ class OrmstcMachine:
                     return
                 value = None
 
-    def _send(self, message: Message) -> None:
-        self._out.append(Broadcast(message))
+    def send(self, message: Message) -> None:
+        self.outbox.append(Broadcast(message))
 
     # ---- Alg. 1 and the top level of Alg. 2 ----
 
     def _run(self) -> Flow:
         if self.config.start != (float(self.home[0]), float(self.home[1])):
-            yield from self._move_to(self.home)  # Alg. 1 lines 4-6: snap to a centre
+            yield from self.move_to(self.home)  # Alg. 1 lines 4-6: snap to a centre
         root = cell_of(self.home)
         self._take(root)
         self.know.starts[self.me] = self.home
-        self._send(StartMsg(self.me, self.home))
+        self.send(StartMsg(self.me, self.home))
         while not self.know.all_started():
             self.know.changed = False
             yield (_WAKE, self.now + 1)
-        yield from self._cover(root)
+        yield from self.cover(root)
         yield from watch(self)
         return None
 
-    def _cover(self, root: Cell) -> Flow:
+    def cover(self, root: Cell) -> Flow:
         """The DFS of Alg. 2 as the walk around the growing tree, back to ``root``.
 
         Standing on a sub-cell means deciding the side it faces (lines 2-17); a side with a
@@ -229,7 +226,7 @@ class OrmstcMachine:
                 if other in mine or other in obstacle:
                     decided[cell] = bits | 1 << side  # _decide's first exit, without a frame
                 else:
-                    yield from self._decide(cell, side)
+                    yield from self.decide(cell, side)
             go = side if edges.get(cell, 0) >> side & 1 else (side + 1) & 3
             dr, dc = DELTA[go]
             nxt = (r + dr, c + dc)
@@ -241,13 +238,13 @@ class OrmstcMachine:
             else:
                 self.bumps += 1
                 yield (_UNTIL, self.now + self._backoff())
-                yield from self._move_to(nxt)
+                yield from self.move_to(nxt)
             r, c = nxt
             if ((r >> 1, c >> 1) == root
                     and decided.get(root, 0) >> SIDE_AT[(r & 1) << 1 | (c & 1)] & 1):
                 return None
 
-    def _decide(self, cell: Cell, side: int) -> Flow:
+    def decide(self, cell: Cell, side: int) -> Flow:
         """Lines 3-17 for the neighbour on ``side``: skip, connect, or grow into it."""
         self.decided[cell] = self.decided.get(cell, 0) | 1 << side
         dr, dc = DELTA[side]
@@ -255,19 +252,16 @@ class OrmstcMachine:
         know = self.know
         if other in self.mine or other in know.obstacle or cell in self.ceded:
             return None  # a ceded cell's neighbours are its new owner's to decide
-        instant = self.instant
         if other in know.owners:
             holder = know.live_owner(other)
             if holder is not None:
-                alive = (self._alive_now(holder, instant) if instant is not None
-                         else (yield from self._ask_alive(holder)))
+                alive = yield from self.ask_alive(holder)
                 if alive:
                     self._connect(holder, cell, other)
                     return None
             for robot in know.dead_owners(other):
-                self._release(robot)  # lines 12-14: a dead robot's cell is empty again
-        status = (self._sense_now(cell, side, other, instant) if instant is not None
-                  else (yield from self._sense(cell, side, other)))
+                self.release(robot)  # lines 12-14: a dead robot's cell is empty again
+        status = yield from self._sense(cell, side, other)
         if status is CellStatus.OBSTACLE:
             return None
         if status is CellStatus.ROBOT:
@@ -278,8 +272,7 @@ class OrmstcMachine:
         won = yield from self._claim(cell, other)
         if won and know.was_owned(other):
             # its owner may have died inside it while we waited: look again before entering
-            status = (self._sense_now(cell, side, other, instant) if instant is not None
-                      else (yield from self._sense(cell, side, other)))
+            status = yield from self._sense(cell, side, other)
             won = status is CellStatus.FREE
         if won:
             self._grow(cell, side)
@@ -291,7 +284,7 @@ class OrmstcMachine:
         know = self.know
         covered = len(self.mine)
         know.claims.hear(target, self.me, covered, self.now)
-        self._out.append(Broadcast(ClaimMsg(self.me, target, covered)))
+        self.outbox.append(Broadcast(ClaimMsg(self.me, target, covered)))
         yield (_UNTIL, self.now + self.config.claim_wait)
         outcome = know.claims.decide(target, self.me, know.live_owner(target), know.dead,
                                      self.now)
@@ -312,7 +305,7 @@ class OrmstcMachine:
         edges[child] = edges.get(child, 0) | 1 << back
         self.decided[child] = self.decided.get(child, 0) | 1 << back
         self.know.claims.pending.pop(child, None)  # claims.settle
-        self._out.append(Broadcast(TreeEdgeMsg(self.me, cell, child)))
+        self.outbox.append(Broadcast(TreeEdgeMsg(self.me, cell, child)))
 
     def _take(self, cell: Cell) -> None:
         self.mine.add(cell)
@@ -323,17 +316,17 @@ class OrmstcMachine:
         retry_at = self.now + self.know.claim_ttl if unsure else None
         self.connections.record(holder, (mine, theirs), retry_at)
         if self.config.announce_connections:
-            self._send(ConnectionMsg(self.me, holder, mine, theirs))
+            self.send(ConnectionMsg(self.me, holder, mine, theirs))
 
-    def _release(self, robot: int) -> None:
+    def release(self, robot: int) -> None:
         know = self.know
         know.mark_dead(robot)
         if robot not in know.released:
             know.released.add(robot)
             self.freed.append(robot)
-            self._send(DeadRobotMsg(self.me, robot))
+            self.send(DeadRobotMsg(self.me, robot))
 
-    def _has_edge(self, cell: Cell, side: int) -> bool:
+    def has_edge(self, cell: Cell, side: int) -> bool:
         return bool(self.edges.get(cell, 0) >> side & 1)
 
     # ---- sensing, moving, liveness ----
@@ -344,15 +337,6 @@ class OrmstcMachine:
         cells, turn = self._look(cell, side, target)
         result = yield (_ANSWER, Sense(cells, turn))
         return self._sensed(target, result.statuses if isinstance(result, SenseResult) else ())
-
-    def _sense_now(self, cell: Cell, side: int, target: Cell,
-                   instant: InstantAnswers) -> CellStatus:
-        """``_sense`` answered by ``instant``, without a generator frame."""
-        if target not in self.know.owners and target in self.know.free:
-            return CellStatus.FREE
-        cells = self._look(cell, side, target)[0]
-        look = instant.cell_status
-        return self._sensed(target, [(c, look(c)) for c in cells])
 
     def _look(self, cell: Cell, side: int, target: Cell) -> tuple[tuple[Cell, ...], bool]:
         """The cells to sense for ``target`` and whether the robot must turn to see it."""
@@ -372,7 +356,7 @@ class OrmstcMachine:
                 status = value
         return status
 
-    def _move_to(self, to: SubCell) -> Flow:
+    def move_to(self, to: SubCell) -> Flow:
         while True:
             result = yield (_ANSWER, Move(to))
             if isinstance(result, MoveResult) and result.ok:
@@ -390,9 +374,7 @@ class OrmstcMachine:
         # paper's bump heuristic: back off for a random short time, then try again
         return self.config.bump_backoff * (1.0 + self._rng.random())
 
-    def _ask_alive(self, robot: int) -> Flow:
-        if self.instant is not None:
-            return self._alive_now(robot, self.instant)
+    def ask_alive(self, robot: int) -> Flow:
         if robot in self.know.dead:
             return False
         result = yield (_ANSWER, IsAlive(robot))
@@ -400,13 +382,3 @@ class OrmstcMachine:
         if not alive:
             self.know.mark_dead(robot)
         return alive
-
-    def _alive_now(self, robot: int, instant: InstantAnswers) -> bool:
-        """``_ask_alive`` answered by ``instant``, without a generator frame."""
-        if robot in self.know.dead:
-            return False
-        alive = instant.is_alive(robot)
-        if not alive:
-            self.know.mark_dead(robot)
-        return alive
-

@@ -11,10 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
-from typing import Protocol
 
-Cell = tuple[int, int]
-SubCell = tuple[int, int]
+from planner.geometry import Cell, SubCell
 
 
 class SenseMode(Enum):
@@ -195,14 +193,3 @@ class WithdrawalMsg:
 
 Message = (StartMsg | ClaimMsg | TreeEdgeMsg | ConnectionMsg | DeadRobotMsg | CompletionMsg
            | WithdrawalMsg)
-
-
-# ---- optional driver shortcut ----
-
-class InstantAnswers(Protocol):
-    """Ground truth a driver can give at once (the lockstep simulator): no Sense / IsAlive
-    round trip. ``OrmstcMachine(config, instant=...)``; agents leave it out."""
-
-    def cell_status(self, cell: Cell) -> CellStatus: ...
-
-    def is_alive(self, robot: int) -> bool: ...

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from planner.ormstc.types import Cell, SubCell
+from planner.geometry import WALK_SIDES, Cell, SubCell
 
-NORTH, WEST, SOUTH, EAST = 0, 1, 2, 3  # counter-clockwise order on screen
-DELTA: tuple[tuple[int, int], ...] = ((-1, 0), (0, -1), (1, 0), (0, 1))
+NORTH, WEST, SOUTH, EAST = 0, 1, 2, 3  # side numbers: indices into geometry.WALK_SIDES
+DELTA: tuple[SubCell, ...] = tuple(heading.delta for heading in WALK_SIDES)
 # side faced by the sub-cell at (row % 2, col % 2)
 _SIDE = {(0, 0): WEST, (1, 0): SOUTH, (1, 1): EAST, (0, 1): NORTH}
 _SUB_OF_SIDE = {side: offset for offset, side in _SIDE.items()}

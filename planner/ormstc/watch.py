@@ -1,4 +1,4 @@
-"""Alg. 2 lines 21-36 for an OrmstcMachine: announce completion, watch, take over.
+"""Alg. 2 lines 21-36 for an Robot: announce completion, watch, take over.
 
 Back on its start the robot broadcasts completion, then watches: every ``watch_interval`` it
 asks whether each robot it has a connection with is alive, and it reacts at once to news of
@@ -10,9 +10,9 @@ target: the robot withdraws its completion, walks round its own tree to the near
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 from planner.ormstc.connections import Link
+from planner.ormstc.robot import WAKE, Flow, Robot
 from planner.ormstc.types import CompletionMsg, Done, SubCell, WithdrawalMsg
 from planner.ormstc.walk import (
     cell_of,
@@ -23,13 +23,8 @@ from planner.ormstc.walk import (
     walk_index,
 )
 
-if TYPE_CHECKING:
-    from planner.ormstc.machine import Flow, OrmstcMachine
 
-_WAKE = 2  # machine._WAKE: wait until a time or until the knowledge changes
-
-
-def watch(m: OrmstcMachine) -> Flow:
+def watch(m: Robot) -> Flow:
     """Lines 21-36, forever: the machine stays here once its first DFS is over."""
     know, table = m.know, m.connections
     next_poll = m.now
@@ -40,20 +35,17 @@ def watch(m: OrmstcMachine) -> Flow:
             if not m.finished:
                 m.finished = True
                 know.completed.add(m.me)
-                m._send(CompletionMsg(m.me, len(m.mine)))
+                m.send(CompletionMsg(m.me, len(m.mine)))
             m.idle = retry_at == math.inf
             if m.idle and mission_over(m) and not m.done_sent:
                 m.done_sent = True
-                m._out.append(Done(m.now))
+                m.outbox.append(Done(m.now))
             if m.now >= next_poll:
                 next_poll = m.now + m.config.watch_interval
                 for robot in sorted(table.holders() - know.dead):
-                    if m.instant is not None:
-                        m._alive_now(robot, m.instant)
-                    else:
-                        yield from m._ask_alive(robot)
+                    yield from m.ask_alive(robot)
                 continue
-            yield (_WAKE, min(next_poll, retry_at))
+            yield (WAKE, min(next_poll, retry_at))
             continue
         m.idle = False
         m.done_sent = False
@@ -61,21 +53,21 @@ def watch(m: OrmstcMachine) -> Flow:
             m.finished = False
             know.completed.discard(m.me)
             m.withdrawn_for = table.links[targets[0]]
-            m._send(WithdrawalMsg(m.me, m.withdrawn_for))
+            m.send(WithdrawalMsg(m.me, m.withdrawn_for))
         for link in targets:
             if table.links[link] in know.dead:
-                m._release(table.links[link])
+                m.release(table.links[link])
         yield from take_over(m, closest(m, targets))
 
 
-def mission_over(m: OrmstcMachine) -> bool:
+def mission_over(m: Robot) -> bool:
     return m.finished and m.know.peers_settled()
 
 
-def closest(m: OrmstcMachine, targets: list[Link]) -> Link:
+def closest(m: Robot, targets: list[Link]) -> Link:
     """The target reached soonest walking either way round the own tree (line 29)."""
     n = 4 * len(m.mine)
-    index = walk_index(m.pos, m._has_edge, n)
+    index = walk_index(m.pos, m.has_edge, n)
 
     def distance(link: Link) -> int:
         ahead = index.get(sub_facing(link[0], side_towards(*link)), 0)
@@ -84,7 +76,7 @@ def closest(m: OrmstcMachine, targets: list[Link]) -> Link:
     return min(targets, key=distance)
 
 
-def take_over(m: OrmstcMachine, link: Link) -> Flow:
+def take_over(m: Robot, link: Link) -> Flow:
     """Lines 30-36: walk to my side of the connection and grow into the freed cell."""
     mine, theirs = link
     side = side_towards(mine, theirs)
@@ -93,17 +85,17 @@ def take_over(m: OrmstcMachine, link: Link) -> Flow:
     if mine not in m.mine:
         return None  # given up in a conflict on the way (planner/ormstc/conflicts.py)
     m.decided[mine] = m.decided.get(mine, 0) & ~(1 << side)
-    yield from m._decide(mine, side)
-    if m._has_edge(mine, side):
+    yield from m.decide(mine, side)
+    if m.has_edge(mine, side):
         m.takeovers += 1
-        yield from m._cover(mine)
+        yield from m.cover(mine)
     return None
 
 
-def walk_to(m: OrmstcMachine, target: SubCell) -> Flow:
+def walk_to(m: Robot, target: SubCell) -> Flow:
     n = 4 * len(m.mine)
-    ahead = walk_index(m.pos, m._has_edge, n).get(target, 0)
+    ahead = walk_index(m.pos, m.has_edge, n).get(target, 0)
     step = successor if ahead <= n - ahead else predecessor
     while m.pos != target and cell_of(target) in m.mine:
-        yield from m._move_to(step(m.pos, m._has_edge))
+        yield from m.move_to(step(m.pos, m.has_edge))
     return None

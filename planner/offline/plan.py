@@ -10,7 +10,7 @@ from planner.allocation import allocate
 from planner.cycle import stc_cycle
 from planner.errors import RobotPlacementError
 from planner.grid import WorkArea
-from planner.plan_builder import build_plan
+from planner.offline.build import build_plan
 from planner.types import Plan, SpanningTree
 
 
@@ -30,3 +30,9 @@ def make_plan(area: WorkArea, tree: SpanningTree, algo: str, *,
     positions = [cycle.position(s) for s in area.starts]
     allocations = allocate(algo, cycle.n, positions, speeds=speeds, fuel=fuel)
     return build_plan(algo, cycle, area.starts, allocations, speeds=speeds, tree=tree)
+
+
+def plan_for(area: WorkArea, tree: SpanningTree, algo: str, seed: int = 0) -> Plan:
+    """The registry's entry point (planner.algorithms): ``seed`` only seeds the tree."""
+    del seed
+    return make_plan(area, tree, algo)

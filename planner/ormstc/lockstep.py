@@ -126,7 +126,7 @@ class LockstepSim:
             robot=i, team=len(self.starts), start=(float(s[0]), float(s[1])),
             claim_wait=wait, sense_mode=cfg.sense_mode, priority=cfg.priority,
             watch_interval=cfg.watch_interval, seed=cfg.seed,
-            announce_connections=cfg.announce_connections), instant=self)
+            announce_connections=cfg.announce_connections))
             for i, s in enumerate(self.starts)]
         self._rng = random.Random(cfg.seed)
         h, w = world.shape
@@ -244,7 +244,7 @@ class LockstepSim:
                     self._answer[robot] = _MOVED if ok else _BUMPED
                 elif kind is Broadcast:
                     self._broadcast(robot, step, request)  # type: ignore[arg-type]
-                elif kind is Sense:  # machines built here ask ``instant``; others may not
+                elif kind is Sense:  # answered within the step, from the ground truth
                     reply = SenseResult(tuple([(c, self.cell_status(c))
                                                for c in request.cells]))  # type: ignore[union-attr]
                 elif kind is IsAlive:
@@ -257,7 +257,7 @@ class LockstepSim:
     # ---- ground truth ----
 
     def cell_status(self, cell: Cell) -> CellStatus:
-        """Ground truth for a machine's sensing (the machines ask it directly: ``instant``)."""
+        """Ground truth for a machine's Sense request."""
         r, c = 2 * cell[0], 2 * cell[1]
         if r < 0 or c < 0 or r + 1 >= self._h or c + 1 >= self._w:
             return CellStatus.OBSTACLE

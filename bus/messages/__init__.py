@@ -1,0 +1,84 @@
+"""Wire messages: frozen dataclasses, one per kind, filed by subject.
+
+schema     the table: every kind's class, key families, QoS class and wire generation
+base       the plain aliases (Pose, SubCell, Cell, SummaryValue)
+lifecycle  Heartbeat, RobotStatus (Hello), RobotEvent, DeathNotice, MissionStatus
+progress   Progress, LookStep, AgentState (with pack_covered / unpack_covered)
+hardware   HwCommand / HwReply, AdminCommand / AdminReply (the simulated hardware's API)
+world      the simulator's ground truth: GroundTruthPose, CoverEvent, BumpEvent, WorldState
+ormstc     the seven ORMSTC kinds (ORMSTC_MESSAGES, OrmstcWire)
+tree       TreeReport, RadioStats (connected tree coverage in the fleet)
+
+Every public name is re-exported here: import messages from ``bus.messages``.
+"""
+
+from bus.messages.base import Cell, Pose, SubCell, SummaryValue
+from bus.messages.hardware import (
+    AdminAction,
+    AdminCommand,
+    AdminReply,
+    HwAction,
+    HwCommand,
+    HwReply,
+    HwStatus,
+    Sensor,
+)
+from bus.messages.lifecycle import (
+    DeathNotice,
+    DeathReason,
+    EventKind,
+    Heartbeat,
+    Hello,
+    MissionState,
+    MissionStatus,
+    RobotEvent,
+    RobotStateName,
+    RobotStatus,
+)
+from bus.messages.ormstc import (
+    ORMSTC_MESSAGES,
+    OrmstcClaim,
+    OrmstcCompletion,
+    OrmstcConnection,
+    OrmstcDeadRobot,
+    OrmstcStart,
+    OrmstcTreeEdge,
+    OrmstcWire,
+    OrmstcWithdrawal,
+)
+from bus.messages.progress import AgentState, LookStep, Progress, pack_covered, unpack_covered
+from bus.messages.schema import (
+    KIND_SINCE,
+    MESSAGE_TYPES,
+    RECORD_TYPES,
+    SCHEMA_VERSION,
+    version_problem,
+)
+from bus.messages.tree import RadioStats, TreeReport
+from bus.messages.world import (
+    NO_ROBOT,
+    BumpEvent,
+    CoverEvent,
+    GroundTruthPose,
+    RobotArray,
+    RobotTruth,
+    WorldState,
+    make_world_state,
+    world_crossed,
+    world_first,
+    world_free,
+    world_visits,
+)
+
+__all__ = [
+    "KIND_SINCE", "MESSAGE_TYPES", "NO_ROBOT", "ORMSTC_MESSAGES", "RECORD_TYPES",
+    "SCHEMA_VERSION", "AdminAction", "AdminCommand", "AdminReply", "AgentState", "BumpEvent",
+    "Cell", "CoverEvent", "DeathNotice", "DeathReason", "EventKind", "GroundTruthPose",
+    "Heartbeat", "Hello", "HwAction", "HwCommand", "HwReply", "HwStatus", "LookStep",
+    "MissionState", "MissionStatus", "OrmstcClaim", "OrmstcCompletion", "OrmstcConnection",
+    "OrmstcDeadRobot", "OrmstcStart", "OrmstcTreeEdge", "OrmstcWire", "OrmstcWithdrawal",
+    "Pose", "Progress", "RadioStats", "RobotArray", "RobotEvent", "RobotStateName",
+    "RobotStatus", "RobotTruth", "Sensor", "SubCell", "SummaryValue", "TreeReport",
+    "WorldState", "make_world_state", "pack_covered", "unpack_covered",
+    "version_problem", "world_crossed", "world_first", "world_free", "world_visits",
+]

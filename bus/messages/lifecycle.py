@@ -1,0 +1,79 @@
+"""A robot's life on the wire: its heartbeat, its hello, its events, deaths, the mission."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar, Literal
+
+from bus.messages.base import Pose, SubCell, SummaryValue
+
+RobotStateName = str  # free text such as "starting", "covering", "done", "fenced"
+
+EventKind = Literal[
+    "started", "section_complete", "takeover_started", "takeover_finished", "leaving",
+    "completed", "completion_withdrawn", "fenced", "stopped",
+]
+
+
+@dataclass(frozen=True)
+class Heartbeat:
+    KIND: ClassVar[str] = "heartbeat"
+    robot: int
+    incarnation: int
+    seq: int
+    pose: Pose | None
+    state: str
+    sim_time: float
+
+
+@dataclass(frozen=True)
+class RobotStatus:
+    """The hello a robot announces at start and re-announces periodically."""
+
+    KIND: ClassVar[str] = "status"
+    robot: int
+    incarnation: int
+    start: SubCell
+    algo: str
+    plan_digest: str
+    state: str
+    message: str = ""
+
+
+Hello = RobotStatus
+
+
+@dataclass(frozen=True)
+class RobotEvent:
+    KIND: ClassVar[str] = "event"
+    robot: int
+    incarnation: int
+    kind: EventKind
+    subject: int | None = None
+    detail: str = ""
+
+
+DeathReason = Literal["heartbeat", "token", "leaving"]
+
+
+@dataclass(frozen=True)
+class DeathNotice:
+    """``robot``/``incarnation`` is the dead life; ``detected_at`` is the detector's clock."""
+
+    KIND: ClassVar[str] = "death"
+    robot: int
+    incarnation: int
+    detected_by: int | None
+    reason: DeathReason
+    detected_at: float
+
+
+MissionState = Literal["running", "complete", "failed"]
+
+
+@dataclass(frozen=True)
+class MissionStatus:
+    KIND: ClassVar[str] = "mission"
+    state: MissionState
+    message: str
+    summary: dict[str, SummaryValue] = field(default_factory=dict)
