@@ -9,6 +9,7 @@ from typing import Any
 
 from bus.argtypes import positive_int
 from deploy.errors import UsageError
+from planner.algorithms import choices_help, names
 from planner.geometry import cell_of
 from planner.grid import work_area
 from planner.maps import resolve_world
@@ -18,7 +19,7 @@ from planner.placement import parse_starts, random_starts
 from planner.trees import ALL_TREE_KINDS, build_tree
 from planner.types import Plan
 
-ALGOS = ("nb", "bt", "opt", "balanced")
+ALGOS = names(plans=True)  # every algorithm that makes an offline plan
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -38,9 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the same as --robots K (an alias kept for old scripts)")
     parser.add_argument("--seed", type=int, default=0, help="seed for placement and trees")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
-                        help="nb: non-backtracking, bt: simple backtracking, opt: optimal "
-                        "backtracking (paper 003); balanced: near-equal connected regions, "
-                        "one STC walk each (--tree does not apply)")
+                        help=f"{choices_help(ALGOS)} (balanced: one STC walk per region, "
+                             f"--tree does not apply; default opt)")
     parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
                         help="spanning tree kind (createtree: paper 000; tmstc: paper 002)")
     parser.add_argument("--speeds", metavar="S,S,...",

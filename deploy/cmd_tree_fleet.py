@@ -29,6 +29,7 @@ from deploy.settings import KillOrder
 from deploy.supervisor import run_recorded
 from deploy.tree_fleet import TreeFleet, TreeFleetOptions, free_endpoint
 from deploy.tree_verdict import format_verdict, lockstep_run, summarize
+from planner.algorithms import Family, choices_help, names
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import tree_from_spec
 
@@ -38,7 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="perfect:N=3,H=4 | general:N=2,H=6,remove=R,at=HEIGHT,seed=S | "
                              "office | FILE.tree")
     parser.add_argument("-n", "--robots", type=positive_int, required=True, help="team size k")
-    parser.add_argument("--algo", choices=["cocta", "ncocta"], default="cocta")
+    parser.add_argument("--algo", choices=names(Family.TREE), default="cocta",
+                        help=f"{choices_help(names(Family.TREE))} (default cocta)")
     parser.add_argument("--listen", metavar="ENDPOINT",
                         help="router endpoint (default: a free port on 127.0.0.1)")
     parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",

@@ -38,9 +38,11 @@ from deploy.settings import (
     stall_timeout,
 )
 from deploy.supervisor import run_recorded
+from planner.algorithms import Family, choices_help, names
 from planner.trees import ALL_TREE_KINDS
 
-ALGOS = ("nb", "bt", "opt", "ormstc")
+# what runs as a fleet on a grid: every offline and on-line algorithm that declares a fleet
+ALGOS = names(Family.OFFLINE, fleet=True) + names(Family.ONLINE, fleet=True)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -50,8 +52,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="builtin world name or map file (default office; --map: the "
                              "same option, as mstc plan spelled it)")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
-                        help="offline MSTC variant the agents run, or ormstc (on-line; "
-                             "its agents read no map) (default opt)")
+                        help=f"{choices_help(ALGOS)} (default opt)")
     parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
                         help="spanning tree kind (default dfs)")
     parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",

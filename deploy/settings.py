@@ -14,6 +14,7 @@ from pathlib import Path
 from bus.config import DEFAULT_LEASE_MS
 from deploy.errors import UsageError
 from deploy.monitor.coverage import reachable_sub_cells
+from planner.algorithms import Family, algorithm
 from planner.geometry import cell_of
 from planner.grid import coarsen, validate_starts, work_area
 from planner.maps import resolve_world
@@ -120,13 +121,11 @@ class MissionSetup:
         else:
             starts = random_starts(grid, args.robots, args.seed)
         validate_starts(grid, coarsen(grid), starts)
-        if args.algo == "ormstc":
-            # ORMSTC plans nothing (its agents get no map); the lockstep simulator's coverage
-            # time on the same world and starts stands in for the planned makespan, and it
-            # rejects two robots in one cell before any process starts.
-            from planner.ormstc.lockstep import simulate
-
-            planned = simulate(grid, starts).makespan
+        if algorithm(args.algo).family is Family.ONLINE:
+            # An on-line algorithm plans nothing (its agents get no map); its lockstep
+            # simulator's coverage time on the same world and starts stands in for the planned
+            # makespan, and it rejects two robots in one cell before any process starts.
+            planned = algorithm(args.algo).load_lockstep()(grid, starts).makespan
         else:
             # The agents plan the same way (agent/plan.py); here it gives the planned
             # makespan and rejects unplannable missions before any process starts.

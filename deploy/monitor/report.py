@@ -15,11 +15,13 @@ from deploy.monitor.figures import mission_figures
 from deploy.monitor.model import FleetModel
 from deploy.monitor.redundancy import EntryAccount, account_entries
 from deploy.monitor.types import Record, Recording
+from planner.algorithms import ALGORITHMS, Family, Revisits
 
 REPORT_SCHEMA = "mstc-report"
 REPORT_VERSION = 1
-NON_REDUNDANT = ("nb", "ormstc")
-BACKTRACKING = ("bt", "opt")
+# each algorithm's promise about sub-cells covered twice, from the registry
+NON_REDUNDANT = tuple(a.name for a in ALGORITHMS.values() if a.revisits is Revisits.NONE)
+BACKTRACKING = tuple(a.name for a in ALGORITHMS.values() if a.revisits is Revisits.BACKTRACK)
 # Keys a robot publishes itself (its messages per move); sim/* is simhw's ground truth.
 _ROBOT_KINDS = ("hb", "status", "progress", "event", "look")
 
@@ -247,7 +249,8 @@ def _redundancy(model: FleetModel, algos: list[str]) -> Invariant:
         return Invariant("redundancy", "skipped",
                          f"the run had failures (robots {failures}); takeovers revisit cells")
     counts = model.covered_cells()
-    if algo == "ormstc":
+    known = ALGORITHMS.get(algo)
+    if known is not None and known.family is Family.ONLINE:
         return _ormstc_redundancy(model)
     if algo in NON_REDUNDANT:
         twice = sorted(c for c, n in counts.items() if n > 1)
