@@ -26,14 +26,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from deploy.monitor.recorder import read_recording
     from deploy.monitor.report import build_report, format_report, replay_model
-    from deploy.monitor.tree_report import build_tree_report, tree_setup  # decodes trees
+    from deploy.monitor.tree_report import build_tree_report, tree_model
 
     recording = read_recording(args.file)
     for error in recording.errors:
         print(f"{args.file}:{error.line}: skipped: {error.reason}", file=sys.stderr)
-    setup = tree_setup(recording)
-    if setup is not None:
-        return _tree_report(build_tree_report(recording, setup), args.json)
+    tree_mission = tree_model(recording)
+    if tree_mission is not None:
+        return _tree_report(build_tree_report(tree_mission), args.json)
     report = build_report(recording)
     if args.json:
         print(json.dumps(report.to_json(), indent=2, sort_keys=True))

@@ -26,6 +26,9 @@ def status_line(model: FleetModel, drops: int = 0) -> str:
     known, alive, dead, done = model.counts()
     numbers = mission_figures(model)
     mission = model.mission.state if model.mission else "unknown"
+    tree = model.tree.line()
+    if tree:
+        return f"{tree}, robots {known} alive {alive} dead {dead}, mission {mission}"
     return (f"coverage {cov}, makespan {numbers.makespan_moves} moves "
             f"{numbers.sim_seconds:.1f} simulated s, total {numbers.total_moves} moves, "
             f"sim {model.sim_time:.1f} s, robots {known} alive {alive} dead {dead} "

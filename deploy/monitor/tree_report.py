@@ -1,58 +1,44 @@
-"""``mstc report`` on a recording of ``mstc tree-fleet``: the robots' own reports replayed
-into the launcher's TeamObserver, and the same verdict the launcher gives (deploy.tree_verdict)
-against the lockstep run with the same deaths. The tree, algorithm and team size come from
-the mission status the launcher repeats while the mission runs."""
+"""``mstc report`` on a recording of ``mstc tree-fleet``: the recording replayed into the fleet
+model, whose tree mission feeds the robots' own reports to the launcher's TeamObserver, and
+the same verdict the launcher gives (deploy.tree_verdict) against the lockstep run with the
+same deaths. The tree, algorithm and team size come from the mission status the launcher
+repeats while the mission runs."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-from bus import keys
-from bus.messages import DeathNotice, MissionStatus
-from bus.tree_messages import TreeReport
+from bus.messages import TreeReport
 from deploy.errors import RecordingError
+from deploy.monitor.model import FleetModel
 from deploy.monitor.types import Recording
-from deploy.tree_observer import TeamObserver
 from deploy.tree_verdict import lockstep_run, summarize
 from planner.treecover.trees import tree_from_spec
 
 
-@dataclass(frozen=True)
-class TreeSetup:
-    tree: str
-    algo: str
-    robots: int
-
-
-def tree_setup(recording: Recording) -> TreeSetup | None:
-    """The tree mission's set-up, or None if this is not a recording of a tree mission."""
+def tree_model(recording: Recording) -> FleetModel | None:
+    """The replayed model if this is a recording of a tree mission, else None."""
+    if not any(isinstance(r.msg, TreeReport) for r in recording.records):
+        return None
+    model = FleetModel(max_events=10_000)
     for record in recording.records:
-        msg = record.msg
-        if isinstance(msg, MissionStatus) and "tree" in msg.summary:
-            info = msg.summary
-            return TreeSetup(str(info["tree"]), str(info.get("algo", "cocta")),
-                             int(info.get("robots", 0)))
-    if any(isinstance(r.msg, TreeReport) for r in recording.records):
+        model.apply(record)
+    if model.tree.setup is None:
         raise RecordingError("a tree-coverage recording without the launcher's mission status "
                              "(which tree, algorithm, team): it cannot be judged")
-    return None
+    if model.tree.observer is None:
+        raise RecordingError(f"the recording's tree cannot be built: {model.tree.unusable}")
+    if model.tree.joined_at is not None:
+        raise RecordingError(f"the recording starts at step {model.tree.joined_at} of the tree "
+                             f"mission, not at its beginning: it cannot be judged")
+    return model
 
 
-def build_tree_report(recording: Recording, setup: TreeSetup) -> dict[str, object]:
+def build_tree_report(model: FleetModel) -> dict[str, object]:
     """The tree-fleet summary (figures and verdict) recomputed from the recording alone."""
-    tree = tree_from_spec(setup.tree)
-    observer = TeamObserver(tree, setup.robots)
-    dead: set[int] = set()
-    for record in recording.records:
-        msg = record.msg
-        if isinstance(msg, TreeReport) and record.via == "sub":
-            parsed = keys.parse(record.key)
-            # what each robot transmitted, as the launcher hears it (not the radio's copies)
-            if parsed is not None and parsed.kind == "tree/outbox":
-                observer.on_transmission(msg)
-        elif isinstance(msg, DeathNotice) and msg.reason != "leaving":
-            dead.add(msg.robot)
-    observer.finish(dead)
+    setup, observer = model.tree.setup, model.tree.observer
+    assert setup is not None and observer is not None
+    # a robot lost at the last step has no next step to confirm it: close with the deaths
+    observer.finish({robot for robot, _ in model.deaths})
     seen = observer.run()
+    tree = tree_from_spec(setup.tree)
     lockstep, cuts = lockstep_run(tree, setup.robots, setup.algo, seen.deaths)
     return summarize(tree, lockstep, seen, lockstep_cuts=cuts)

@@ -194,6 +194,8 @@ def side_panel(model: FleetModel, stats: FeedStats) -> RenderableType:
     covered = model.covered_count()
     figures.add_row("coverage", f"{coverage:.1f} % ({covered}/{total})"
                     if coverage is not None else f"{covered} sub-cells (map unknown)")
+    if model.tree.line():
+        figures.add_row("tree", model.tree.line())
     numbers = mission_figures(model)
     figures.add_row("moves", f"makespan {numbers.makespan_moves}, total {numbers.total_moves}")
     scale = "" if model.time_scale is None else f" (x{model.time_scale:g})"
