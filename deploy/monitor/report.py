@@ -342,4 +342,7 @@ def format_report(report: MissionReport) -> str:
     for inv in report.invariants:
         mark = {"ok": "ok     ", "failed": "FAILED ", "skipped": "skipped"}[inv.status]
         lines.append(f"  [{mark}] {inv.name}: {inv.detail}")
+    failed = [inv.name for inv in report.invariants if inv.status == "failed"]
+    lines.append("verdict: ok (no invariant failed)" if not failed else
+                 f"verdict: FAILED ({'; '.join(failed)})")
     return "\n".join(lines)
