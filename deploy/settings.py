@@ -112,30 +112,29 @@ class MissionSetup:
     @classmethod
     def plan(cls, settings: UpSettings) -> MissionSetup:
         """Load the map, place the robots and plan (PlannerError for user mistakes)."""
-        args = settings
-        grid = resolve_world(args.world, args.cell_size)
-        if args.starts:
-            starts = parse_starts(args.starts)
-            if len(starts) != args.robots:
-                raise UsageError(f"--starts gives {len(starts)} robots, -n says {args.robots}")
+        grid = resolve_world(settings.world, settings.cell_size)
+        if settings.starts:
+            starts = parse_starts(settings.starts)
+            if len(starts) != settings.robots:
+                raise UsageError(f"--starts gives {len(starts)} robots, -n says {settings.robots}")
         else:
-            starts = random_starts(grid, args.robots, args.seed)
+            starts = random_starts(grid, settings.robots, settings.seed)
         validate_starts(grid, coarsen(grid), starts)
-        if algorithm(args.algo).family is Family.ONLINE:
+        if algorithm(settings.algo).family is Family.ONLINE:
             # An on-line algorithm plans nothing (its agents get no map); its lockstep
             # simulator's coverage time on the same world and starts stands in for the planned
             # makespan, and it rejects two robots in one cell before any process starts.
-            planned = algorithm(args.algo).load_lockstep()(grid, starts).makespan
+            planned = algorithm(settings.algo).load_lockstep()(grid, starts).makespan
         else:
-            # The agents plan the same way (agent/plan.py); here it gives the planned
+            # The agents plan the same way (the offline agent's plan); here it gives the planned
             # makespan and rejects unplannable missions before any process starts.
             area = work_area(grid, starts)
-            tree = build_tree(area.cells, args.tree, seed=args.seed,
-                              starts=[cell_of(s) for s in starts])
-            planned = make_plan(area, tree, args.algo).makespan
-        return cls(world=args.world, cell_size=args.cell_size, grid=grid, starts=starts,
-                   algo=args.algo, tree=args.tree, seed=args.seed, time_scale=args.time_scale,
-                   reachable=reachable_sub_cells(grid, starts),
+            tree = build_tree(area.cells, settings.tree, seed=settings.seed,
+                              starts=[cell_of(start) for start in starts])
+            planned = make_plan(area, tree, settings.algo).makespan
+        return cls(world=settings.world, cell_size=settings.cell_size, grid=grid,
+                   starts=starts, algo=settings.algo, tree=settings.tree, seed=settings.seed,
+                   time_scale=settings.time_scale, reachable=reachable_sub_cells(grid, starts),
                    planned_makespan=planned)
 
 
