@@ -24,7 +24,7 @@ from pathlib import Path
 from bus.argtypes import positive, positive_int
 from bus.config import ConnectionSettings
 from deploy.errors import UsageError
-from deploy.fleet import default_run_dir, unique_mission
+from deploy.fleet import check_port_free, default_run_dir, unique_mission
 from deploy.settings import KillOrder
 from deploy.supervisor import run_recorded
 from deploy.tree_fleet import TreeFleet, TreeFleetOptions, free_endpoint
@@ -84,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
     if args.record is not None and not args.record.parent.is_dir():
         raise UsageError(f"--record {args.record}: directory {args.record.parent} does not exist")
     lockstep = run_coverage(tree, args.robots, args.algo)  # also rejects infeasible inputs
+    if args.listen is not None:
+        check_port_free(args.listen)  # another fleet there: one line now, not a failed router
     mission = args.mission or unique_mission()
     options = TreeFleetOptions(
         tree=args.tree, robots=args.robots, algo=args.algo, mission=mission,
