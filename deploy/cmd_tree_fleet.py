@@ -24,7 +24,7 @@ from pathlib import Path
 from bus.argtypes import positive, positive_int
 from bus.config import ConnectionSettings
 from deploy.errors import UsageError
-from deploy.fleet import check_port_free, default_run_dir, unique_mission
+from deploy.fleet import RunDir, check_port_free, default_run_dir, unique_mission
 from deploy.settings import KillOrder
 from deploy.supervisor import run_recorded
 from deploy.tree_fleet import TreeFleet, TreeFleetOptions, free_endpoint
@@ -64,6 +64,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--settle", type=positive, default=1.0, metavar="SECONDS",
                         help="how long agents wait for a dead robot's last report (default 1)")
     parser.add_argument("--json", action="store_true", help="print one JSON object at the end")
+    parser.add_argument("--plain", action="store_true",
+                        help="plain progress lines (the only kind this command prints; "
+                             "accepted so that mstc up's command lines carry over)")
 
 
 def kill_order(text: str) -> KillOrder:
@@ -104,5 +107,8 @@ def run(args: argparse.Namespace) -> int:
                         message=outcome.message, lockstep_cuts=lockstep_cuts,
                         radio=outcome.radio, wall_seconds=outcome.wall_seconds,
                         mission_seconds=outcome.mission_seconds)
+    summary["complete"] = outcome.observed.coverage_time is not None \
+        and outcome.observed.visited == tree.n
+    RunDir(options.run_dir).write_summary(summary)
     print(json.dumps(summary) if args.json else format_verdict(summary))
     return 0 if summary["verdict"] == "ok" else 1

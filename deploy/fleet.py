@@ -9,7 +9,7 @@ unrelated process that reused the pid after the fleet ended.
 Run directory layout::
 
     <run>/fleet.json        FleetInfo: mission, endpoint, world, processes (read by down/kill)
-    <run>/summary.json      the end-of-mission summary (written by mstc up)
+    <run>/summary.json      the end-of-mission summary (mstc up; mstc tree-fleet's verdict)
     <run>/logs/<name>.log   stdout+stderr of each process (router, simhw, agent-<i>)
     <run>/pids/<name>.pid   "<pid> <start-ticks>" of each process, up.pid for the launcher
 """
