@@ -155,25 +155,3 @@ def test_plan_spellings_world_map_robots_starts_agree(capsys: pytest.CaptureFixt
     assert "deprecated, use --starts" in done.err
     assert main(["plan", "--world", "example", "--robots", "0"]) == 2
     assert "at least 1 robot" in capsys.readouterr().err
-
-
-def test_every_registered_algorithm_is_offered_by_the_commands_that_run_it() -> None:
-    """--algo choices come from the registry: plan offers every offline planner, up every
-    grid algorithm that runs as a fleet, tree-cover and tree-fleet the tree family."""
-    import argparse
-
-    from deploy import cmd_plan, cmd_tree_cover, cmd_tree_fleet, cmd_up
-    from planner.algorithms import ALGORITHMS, Family
-
-    def choices(module: object) -> set[str]:
-        parser = argparse.ArgumentParser()
-        module.add_arguments(parser)  # type: ignore[attr-defined]
-        action = next(a for a in parser._actions if "--algo" in a.option_strings)
-        return set(action.choices or ())
-
-    grid_fleet = {a.name for a in ALGORITHMS.values() if a.fleet and a.family is not Family.TREE}
-    assert choices(cmd_plan) == {a.name for a in ALGORITHMS.values() if a.plan is not None}
-    assert choices(cmd_up) == grid_fleet
-    tree = {a.name for a in ALGORITHMS.values() if a.family is Family.TREE}
-    assert choices(cmd_tree_cover) == choices(cmd_tree_fleet) == tree
-    assert set(ALGORITHMS) == choices(cmd_plan) | choices(cmd_up) | tree
