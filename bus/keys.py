@@ -134,6 +134,15 @@ def all_alive(mission: str) -> str:
     return wildcard("alive", mission)
 
 
+def replan(mission: str, robot: int) -> str:
+    """A survivor's ReplanReport (offline agents re-balancing after a death)."""
+    return build("replan", mission, robot)
+
+
+def all_replans(mission: str) -> str:
+    return wildcard("replan", mission)
+
+
 def state(mission: str, robot: int) -> str:
     """Queryable answering a robot's current state messages (late joiners, router restart)."""
     return build("state", mission, robot)

@@ -114,11 +114,16 @@ class Launcher:
             self.agents.append(self._spawn(f"agent-{robot}", "agent", mstc_argv(
                 "agent", "--id", str(robot), "--algo", s.algo, *world, "--tree", s.tree,
                 "--seed", str(s.seed), "--robots", str(s.k), "--dead-after",
-                str(self.settings.dead_after), *self._connection(),
+                str(self.settings.dead_after), *self._recovery(), *self._connection(),
                 *self.settings.agent_args), robot))
         self.write_fleet()
         self.view.event(f"fleet up: mission {self.mission}, {s.k} agents, world {s.world}, "
                         f"algo {s.algo}, run dir {self.run_dir.path}")
+
+    def _recovery(self) -> list[str]:
+        """--recovery for the agents, only when not the default (ORMSTC agents have none)."""
+        recovery = self.settings.recovery
+        return [] if recovery == "takeover" else ["--recovery", recovery]
 
     def children(self) -> list[Child]:
         return self.supervisor.children

@@ -148,6 +148,7 @@ class UpSettings:
     starts: str | None = None  # "r,c;r,c;..." as given, or None for random starts
     algo: str = "opt"
     tree: str = "dfs"
+    recovery: str = "takeover"  # offline agents' --recovery
     seed: int = 0
     time_scale: float = DEFAULT_TIME_SCALE
     kills: tuple[KillOrder, ...] = ()

@@ -93,6 +93,7 @@ class MissionTracker:
     views: list[SupervisedRobot] = field(init=False)
     last_progress: float = 0.0
     takeovers: set[tuple[int, int | None]] = field(default_factory=set)
+    replans: set[tuple[int, str]] = field(default_factory=set)  # (robot, what it said)
     heard: set[int] = field(default_factory=set)  # robots whose status was received
     log: list[str] = field(default_factory=list)
     model: FleetModel = field(init=False)  # the figures' source, as in mstc monitor / report
@@ -187,6 +188,9 @@ class MissionTracker:
                 not in self.takeovers:
             self.takeovers.add(pair)
             self.log.append(f"robot {event.robot} takes over robot {event.subject}'s section")
+        elif event.kind == "replanned" and (event.robot, event.detail) not in self.replans:
+            self.replans.add((event.robot, event.detail))
+            self.log.append(f"robot {event.robot} re-planned: {event.detail}")
         if event.kind in ("fenced", "stopped", "leaving"):
             view.state = event.kind
 

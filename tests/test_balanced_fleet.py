@@ -1,9 +1,11 @@
-"""``mstc up --algo balanced`` with real processes on loopback: the agents plan the balanced
-regions themselves (digest-checked), walk them with BalancedRobot, and finish a dead robot's
-region; coverage is checked against simhw's ground truth (summary.json)."""
+"""``mstc up --algo balanced`` and ``--recovery rebalance`` with real processes on loopback:
+the agents plan the balanced regions themselves (digest-checked), walk them with
+BalancedRobot, and finish a dead robot's region, by the takeover or by re-planning together;
+coverage is checked against simhw's ground truth (summary.json)."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 from pathlib import Path
 
@@ -15,9 +17,10 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 RUN_LIMIT = 180.0
 
 
-def run_balanced(port: int, run_dir: Path, *extra: str) -> subprocess.CompletedProcess[str]:
+def run_balanced(port: int, run_dir: Path, *extra: str,
+                 algo: str = "balanced") -> subprocess.CompletedProcess[str]:
     argv = up_argv(port, run_dir, "--time-scale", "0", *extra, robots=5)
-    argv[argv.index("--algo") + 1] = "balanced"
+    argv[argv.index("--algo") + 1] = algo
     return subprocess.run(argv, capture_output=True, text=True, timeout=RUN_LIMIT)
 
 
@@ -34,3 +37,28 @@ def test_a_balanced_fleet_finishes_a_killed_robots_region(free_port: int,
     summary = check_complete(result, tmp_path / "run")
     assert [lost["robot"] for lost in summary["robots_lost"]] == [2]
     assert "takes over robot 2" in result.stdout
+
+
+def replans(stdout: str) -> dict[str, set[str]]:
+    """Digests of the re-plan reports each survivor used, by the deaths it re-planned for."""
+    out: dict[str, set[str]] = {}
+    for dead, digest in re.findall(r"re-planned: dead (\[[\d, ]*\]), digest (\w+)", stdout):
+        out.setdefault(dead, set()).add(digest)
+    return out
+
+
+@pytest.mark.parametrize(("algo", "kills"), [("balanced", ("2@progress=30",)),
+                                             ("opt", ("1@progress=20", "3@progress=40"))])
+def test_survivors_re_plan_together_and_finish(free_port: int, tmp_path: Path, algo: str,
+                                               kills: tuple[str, ...]) -> None:
+    flags = [flag for kill in kills for flag in ("--kill", kill)]
+    # at full speed a kill can land after the last sub-cell; 100 x keeps it mid-mission
+    result = run_balanced(free_port, tmp_path / "run", "--recovery", "rebalance", *flags,
+                          "--time-scale", "100", algo=algo)
+    summary = check_complete(result, tmp_path / "run")
+    assert len(summary["robots_lost"]) == len(kills)
+    assert "takes over" not in result.stdout
+    plans = replans(result.stdout)
+    assert plans, result.stdout
+    # every survivor that re-planned for the same deaths used the same reports
+    assert all(len(digests) == 1 for digests in plans.values()), plans

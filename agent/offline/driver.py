@@ -28,6 +28,7 @@ from agent.offline.hardware import Hardware
 from agent.offline.options import OfflineOptions
 from agent.offline.peers import PeerTable
 from agent.offline.plan import compute_plan, plan_digest, robot_machine
+from agent.offline.replan import ReplanBoard
 from agent.offline.runner import OfflineRunner
 from bus import keys
 from bus.bridge import BoundedFifo, Bus, LatestWins, Received
@@ -39,6 +40,7 @@ from bus.messages import (
     MissionState,
     MissionStatus,
     Progress,
+    ReplanReport,
     RobotEvent,
     RobotStatus,
     pack_covered,
@@ -48,7 +50,8 @@ from planner.maps import resolve_world
 from planner.types import Plan
 
 _log = logging.getLogger("mstc.agent")
-STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress)
+STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress,
+               ReplanReport)
 
 
 class OfflineAgent(BodyAgent):
@@ -64,6 +67,7 @@ class OfflineAgent(BodyAgent):
         self.digest = ""
         self.plan: Plan | None = None
         self.runner: OfflineRunner | None = None
+        self.board: ReplanBoard | None = None
 
     # --- plumbing -------------------------------------------------------------------------
 
@@ -79,6 +83,13 @@ class OfflineAgent(BodyAgent):
         bus.subscribe(keys.all_progress(m), Progress, self._on_progress, BoundedFifo(65536))
         bus.subscribe(keys.mission_status(m), MissionStatus, self.peers.on_mission,
                       LatestWins())
+        if self.options.recovery == "rebalance":
+            bus.subscribe(keys.all_replans(m), ReplanReport, self._on_replan_report,
+                          BoundedFifo(4096))
+
+    def _on_replan_report(self, key: str, msg: ReplanReport) -> None:
+        if self.board is not None and self.board.on_report(key, msg):
+            self.peers.changed.set()
 
     def _heartbeat_info(self) -> HeartbeatInfo:
         return HeartbeatInfo(pose=self.hardware.state.pose, state=self._phase(),
@@ -143,6 +154,8 @@ class OfflineAgent(BodyAgent):
                     self._on_death(msg)
             elif isinstance(msg, MissionStatus):
                 self.peers.on_mission(rx.key, msg)
+            elif isinstance(msg, ReplanReport):
+                self._on_replan_report(keys.replan(self.bus.mission, msg.robot), msg)
 
     # --- the mission ----------------------------------------------------------------------
 
@@ -191,11 +204,16 @@ class OfflineAgent(BodyAgent):
         await self._until(self.peers.missing_digests, "announce their plan digest",
                           self._check_digests)
         self._check_digests()
-        machine = robot_machine(self.plan, self.config.algo, self.robot)
+        rebalancing = self.options.recovery == "rebalance"
+        machine = robot_machine(self.plan, self.config.algo, self.robot,
+                                takeover=not rebalancing)
         self.peers.attach(machine)
+        if rebalancing:
+            self.board = ReplanBoard(self.plan, self.config.k, self.bus.drops)
         self.runner = OfflineRunner(self.bus, self.hardware, self.peers, machine,
                                     self.incarnation, refresh=self.refresh,
-                                    refresh_period=self.config.announce_period)
+                                    refresh_period=self.config.announce_period,
+                                    board=self.board, announce=self.announcer.set)
         self.phase = "driving"
         self._status("covering")
         self._say("driving")

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from agent.core.errors import ConfigError
 from bus.argtypes import positive_int
 from planner.algorithms import Family, names
+from planner.offline.rebalance import RECOVERIES, Recovery
 from planner.trees import ALL_TREE_KINDS
 
 DEFAULT_TREE = "dfs"
@@ -21,6 +22,7 @@ class OfflineOptions:
     world: str
     cell_size: int | None = None
     tree: str = DEFAULT_TREE
+    recovery: Recovery = "takeover"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,6 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             "algorithms (required for them)")
     group.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
                        help="map pixels per sub-cell side (default 1)")
+    group.add_argument("--recovery", choices=RECOVERIES, default="takeover",
+                       help="after a death: the papers' takeover (the robot behind walks the "
+                            "dead one's rest after its own) or rebalance (the survivors stop, "
+                            "exchange where they are and re-split the remaining work) "
+                            "(default takeover)")
 
 
 def from_args(args: argparse.Namespace) -> OfflineOptions:
@@ -41,4 +48,5 @@ def from_args(args: argparse.Namespace) -> OfflineOptions:
     if tree not in ALL_TREE_KINDS:
         raise ConfigError(f"argument --tree: invalid choice for --algo {args.algo}: {tree!r} "
                           f"(choose from {', '.join(ALL_TREE_KINDS)})")
-    return OfflineOptions(world=args.world, cell_size=args.cell_size, tree=tree)
+    return OfflineOptions(world=args.world, cell_size=args.cell_size, tree=tree,
+                          recovery=args.recovery)

@@ -33,10 +33,11 @@ def compute_plan(grid: OccupancyGrid, starts: Sequence[SubCell], algo: str, tree
     return plan
 
 
-def robot_machine(plan: Plan, algo: str, robot: int) -> PlanRobot:
+def robot_machine(plan: Plan, algo: str, robot: int, *, takeover: bool = True) -> PlanRobot:
     """Robot ``robot``'s state machine for ``plan``: the one the registry names for ``algo``
-    (the lockstep replay drives the same class)."""
-    machine: PlanRobot = algorithm(algo).load_machine()(plan, robot)
+    (the lockstep replay drives the same class); ``takeover`` False when a re-plan, not the
+    machine, recovers from deaths."""
+    machine: PlanRobot = algorithm(algo).load_machine()(plan, robot, takeover=takeover)
     return machine
 
 

@@ -11,12 +11,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Awaitable, Callable
+from typing import Any
+
+import numpy as np
 
 from agent.offline.hardware import Hardware
 from agent.offline.peers import PeerTable
+from agent.offline.replan import ReplanBoard
 from bus import keys
 from bus.bridge import Bus
-from bus.messages import EventKind, Progress, RobotEvent
+from bus.messages import EventKind, Progress, ReplanReport, RobotEvent, pack_covered
 from planner.offline.machine import Finished, MoveTo, PlanRobot, WaitFor
 
 
@@ -25,7 +29,8 @@ class OfflineRunner:
 
     def __init__(self, bus: Bus, hardware: Hardware, peers: PeerTable, machine: PlanRobot,
                  incarnation: int, *, refresh: Callable[[], Awaitable[None]],
-                 refresh_period: float) -> None:
+                 refresh_period: float, board: ReplanBoard | None = None,
+                 announce: Callable[[str, Any], None] | None = None) -> None:
         self.bus = bus
         self.hardware = hardware
         self.peers = peers
@@ -40,6 +45,11 @@ class OfflineRunner:
         self._targets: dict[int, int] = {}  # cycle index -> dead robot whose takeover ends there
         self._section_announced = False
         self._refreshed = -float("inf")
+        # --recovery rebalance: the reports to re-plan from, how to announce ours, and the
+        # dead robots of the last re-plan (its epoch)
+        self.board = board
+        self._announce = announce
+        self._epoch: tuple[int, ...] = ()
 
     def event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
         self.bus.publish(keys.events(self.bus.mission, self.robot),
@@ -48,6 +58,10 @@ class OfflineRunner:
     async def run(self) -> None:
         self.event("started", detail=f"{self.machine.own_steps_left} moves planned")
         while True:
+            if self.board is not None and self._dead() != self._epoch \
+                    and not self.machine.all_covered:
+                await self._replan()
+                continue
             if self.machine.about_to_take_over:
                 # The decision is only as good as what we know of the dead robot's coverage:
                 # merge what the others know first (our own copy may lag or have gaps).
@@ -68,6 +82,36 @@ class OfflineRunner:
                 continue
             self.phase = "covering" if not self.machine.section_done else "taking over"
             await self._move(action)
+
+    def _dead(self) -> tuple[int, ...]:
+        return tuple(sorted(self.machine.dead))
+
+    async def _replan(self) -> None:
+        """Stop, announce where we are, wait for every survivor's report of this epoch and
+        walk the re-plan (agent.offline.replan); a new death restarts with a new epoch."""
+        assert self.board is not None and self._announce is not None
+        dead = self._dead()
+        self.phase = "re-planning"
+        m = self.machine
+        mine = ReplanReport(self.robot, self.incarnation, dead, m.position, m.pending_route,
+                            pack_covered(m.covered))
+        self.board.on_report(keys.replan(self.bus.mission, self.robot), mine)
+        self._announce(keys.replan(self.bus.mission, self.robot), mine)
+        while self._dead() == dead and not m.all_covered:
+            if not self.board.missing(dead):
+                replan, covered, digest = self.board.replan(dead)
+                for index in np.flatnonzero(covered):
+                    m.on_covered(int(index))
+                route = replan.routes[self.robot]
+                m.on_replan(route)
+                self._epoch = dead
+                self.event("replanned", None, f"dead {list(dead)}, digest {digest[:16]}, "
+                                              f"{len(route)} moves to walk")
+                return
+            if time.monotonic() - self._refreshed >= self._refresh_period:
+                self._refreshed = time.monotonic()
+                await self._refresh()
+            await self.peers.wait_news(self._refresh_period)
 
     async def _move(self, action: MoveTo) -> None:
         await self.hardware.step_to(action.sub)

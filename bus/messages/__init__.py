@@ -46,7 +46,14 @@ from bus.messages.ormstc import (
     OrmstcWire,
     OrmstcWithdrawal,
 )
-from bus.messages.progress import AgentState, LookStep, Progress, pack_covered, unpack_covered
+from bus.messages.progress import (
+    AgentState,
+    LookStep,
+    Progress,
+    ReplanReport,
+    pack_covered,
+    unpack_covered,
+)
 from bus.messages.schema import (
     KIND_SINCE,
     MESSAGE_TYPES,
@@ -77,8 +84,9 @@ __all__ = [
     "Heartbeat", "Hello", "HwAction", "HwCommand", "HwReply", "HwStatus", "LookStep",
     "MissionState", "MissionStatus", "OrmstcClaim", "OrmstcCompletion", "OrmstcConnection",
     "OrmstcDeadRobot", "OrmstcStart", "OrmstcTreeEdge", "OrmstcWire", "OrmstcWithdrawal",
-    "Pose", "Progress", "RadioStats", "RobotArray", "RobotEvent", "RobotStateName",
-    "RobotStatus", "RobotTruth", "Sensor", "SubCell", "SummaryValue", "TreeReport",
+    "Pose", "Progress", "RadioStats", "ReplanReport", "RobotArray", "RobotEvent",
+    "RobotStateName", "RobotStatus", "RobotTruth", "Sensor", "SubCell", "SummaryValue",
+    "TreeReport",
     "WorldState", "make_world_state", "pack_covered", "unpack_covered",
     "version_problem", "world_crossed", "world_first", "world_free", "world_visits",
 ]

@@ -11,7 +11,7 @@ RobotStateName = str  # free text such as "starting", "covering", "done", "fence
 
 EventKind = Literal[
     "started", "section_complete", "takeover_started", "takeover_finished", "leaving",
-    "completed", "completion_withdrawn", "fenced", "stopped",
+    "completed", "completion_withdrawn", "fenced", "stopped", "replanned",
 ]
 
 

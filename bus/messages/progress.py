@@ -60,6 +60,22 @@ class AgentState:
     seed: int = 0
 
 
+@dataclass(frozen=True)
+class ReplanReport:
+    """What a survivor holds when it stops to re-plan after deaths (offline agents with
+    ``--recovery rebalance``): the robots it knows dead (the re-plan's epoch), the cycle index
+    it stands on, the cycle indices it is still to walk, and every cycle index it knows
+    covered (``pack_covered``). Every survivor re-plans from the same set of reports."""
+
+    KIND: ClassVar[str] = "replan_report"
+    robot: int
+    incarnation: int
+    dead: tuple[int, ...]
+    position: int
+    route: tuple[int, ...]
+    covered: bytes
+
+
 def pack_covered(covered: npt.NDArray[np.bool_]) -> bytes:
     """Bits, then zlib: coverage is long runs, so even a 10^6-sub-cell map fits a message."""
     return zlib.compress(np.packbits(covered.astype(bool)).tobytes())

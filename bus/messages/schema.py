@@ -31,7 +31,7 @@ from bus.messages.ormstc import (
     OrmstcTreeEdge,
     OrmstcWithdrawal,
 )
-from bus.messages.progress import AgentState, LookStep, Progress
+from bus.messages.progress import AgentState, LookStep, Progress, ReplanReport
 from bus.messages.tree import RadioStats, TreeReport
 from bus.messages.world import BumpEvent, CoverEvent, GroundTruthPose, RobotTruth, WorldState
 
@@ -110,6 +110,8 @@ KINDS: tuple[Kind, ...] = (
     Kind(LookStep, (family("look/{robot}"),), C.CRITICAL),
     # only the reply of the state/<r> queryable, which also answers the robot's kept messages
     Kind(AgentState, (family("state/{robot}"),), C.STREAM, since=2),
+    # a survivor's input to the re-plan after a death: the others wait for it
+    Kind(ReplanReport, (family("replan/{robot}"),), C.CRITICAL, since=3),
     # the simulated hardware (bus.messages.hardware)
     Kind(HwCommand, (HW_CMD,), C.CONTROL),
     Kind(HwReply, (HW_CMD,), C.CONTROL),

@@ -170,6 +170,8 @@ class FleetModel:
         elif ev.kind == "takeover_finished":
             self._emit(record.t, "takeover_done", r, f"robot {r} finished robot {s}'s "
                                                      f"section{detail}")
+        elif ev.kind == "replanned":
+            self._emit(record.t, "replanned", r, f"robot {r} re-planned{detail}")
         elif ev.kind == "section_complete":
             self._emit(record.t, "section_complete", r, f"robot {r} covered its section"
                                                         f"{detail}")

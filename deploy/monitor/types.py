@@ -14,7 +14,7 @@ Via = Literal["sub", "query", "token"]
 
 EventKind = Literal[
     "joined", "state", "claimed", "conflict_lost", "tree_edge", "died", "detected_dead",
-    "takeover", "takeover_done", "section_complete", "completed", "withdrawn", "left",
+    "takeover", "takeover_done", "replanned", "section_complete", "completed", "withdrawn", "left",
     "fenced", "stopped", "bump", "mission_complete", "mission_failed", "world",
 ]
 

@@ -114,9 +114,19 @@ class PlanRobot(Protocol):
     cycle: Cycle
     covered: BoolArray
     own_steps_left: int
+    dead: set[int]
+    position: int
+
+    @property
+    def all_covered(self) -> bool: ...
 
     @property
     def about_to_take_over(self) -> bool: ...
+
+    @property
+    def pending_route(self) -> tuple[int, ...]: ...
+
+    def on_replan(self, route: tuple[int, ...]) -> None: ...
 
     @property
     def section_done(self) -> bool: ...

@@ -18,7 +18,6 @@ between pieces and to them are shortest paths over the cycle's sub-cells.
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import pairwise
@@ -54,57 +53,69 @@ class Survivor:
 
 
 class Grid:
-    """Shortest paths over the cycle's sub-cells, in cycle-index space (cached sources)."""
+    """Shortest paths over the cycle's sub-cells (breadth-first, whole-array steps), in
+    cycle-index space; distance maps cached per source and sub-cells avoided."""
 
     def __init__(self, cycle: Cycle) -> None:
         self.cycle = cycle
         self.free: BoolArray = cycle.index >= 0
-        self._dist: dict[int, tuple[IntArray, IntArray]] = {}
+        self._dist: dict[tuple[int, frozenset[int]], IntArray] = {}
 
-    def from_source(self, source: int) -> tuple[IntArray, IntArray]:
-        """(distance, parent) per cycle index from ``source``; parent -1 at the source."""
-        if source not in self._dist:
-            self._dist[source] = self._bfs(source)
-        return self._dist[source]
+    def from_source(self, source: int, avoid: frozenset[int] = frozenset()) -> IntArray:
+        """Moves from ``source`` to each sub-cell (grid-shaped; _FAR where unreachable)
+        around the cycle indices ``avoid``."""
+        key = (source, avoid)
+        if key not in self._dist:
+            self._dist[key] = self._bfs(source, avoid)
+        return self._dist[key]
 
-    def _bfs(self, source: int) -> tuple[IntArray, IntArray]:
-        n = self.cycle.n
-        index = self.cycle.index
-        h, w = index.shape
-        dist = np.full(n, _FAR, dtype=np.int64)
-        parent = np.full(n, -1, dtype=np.int64)
-        dist[source] = 0
-        queue = deque([source])
-        while queue:
-            here = queue.popleft()
-            r, c = self.cycle.at(here)
-            for nr, nc in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
-                if 0 <= nr < h and 0 <= nc < w:
-                    nxt = int(index[nr, nc])
-                    if nxt >= 0 and dist[nxt] == _FAR:
-                        dist[nxt] = dist[here] + 1
-                        parent[nxt] = here
-                        queue.append(nxt)
-        return dist, parent
+    def _bfs(self, source: int, avoid: frozenset[int]) -> IntArray:
+        open_ = self.free.copy()
+        for index in avoid:
+            open_[self.cycle.at(index)] = False
+        dist = np.full(open_.shape, _FAR, dtype=np.int64)
+        frontier = np.zeros(open_.shape, dtype=bool)
+        frontier[self.cycle.at(source)] = True
+        dist[frontier] = 0
+        step = 0
+        while frontier.any():
+            step += 1
+            grown = np.zeros_like(frontier)
+            grown[1:, :] |= frontier[:-1, :]
+            grown[:-1, :] |= frontier[1:, :]
+            grown[:, 1:] |= frontier[:, :-1]
+            grown[:, :-1] |= frontier[:, 1:]
+            frontier = grown & open_ & (dist == _FAR)
+            dist[frontier] = step
+        return dist
 
     def distance(self, a: int, b: int) -> int:
         ra, ca = self.cycle.at(a)
         rb, cb = self.cycle.at(b)
         if abs(ra - rb) + abs(ca - cb) <= 1:
             return abs(ra - rb) + abs(ca - cb)
-        return int(self.from_source(a)[0][b])
+        return int(self.from_source(a)[rb, cb])
 
-    def path(self, a: int, b: int) -> list[int]:
-        """Cycle indices after ``a`` up to and including ``b`` on a shortest path."""
+    def path(self, a: int, b: int, avoid: frozenset[int] = frozenset()) -> list[int]:
+        """Cycle indices after ``a`` up to and including ``b`` on a shortest path, around
+        ``avoid`` where a way around exists (ties: up, right, down, left from ``b``)."""
         if a == b:
             return []
         if self.distance(a, b) == 1:
             return [b]
-        parent = self.from_source(a)[1]
-        out = [b]
-        while out[-1] != a:
-            out.append(int(parent[out[-1]]))
-        return out[-2::-1]
+        at = self.cycle.at(b)
+        dist = self.from_source(a, avoid - {b})
+        if dist[at] >= _FAR:
+            dist = self.from_source(a)
+        h, w = dist.shape
+        back = [at]
+        while dist[back[-1]] > 0:
+            r, c = back[-1]
+            d = dist[r, c]
+            back.append(next((nr, nc) for nr, nc in ((r - 1, c), (r, c + 1), (r + 1, c),
+                                                     (r, c - 1))
+                             if 0 <= nr < h and 0 <= nc < w and dist[nr, nc] == d - 1))
+        return [self.cycle.position(sub) for sub in back[-2::-1]]
 
 
 def plan_order(plan: Plan) -> IntArray:
@@ -224,10 +235,20 @@ def _share(grid: Grid, covered: BoolArray, work: list[int], survivors: list[Surv
     assert best is not None
     routes = {s.robot: s.route if keep else () for s in survivors}
     owner = _owners(covered, survivors) if keep else {}
+    oriented = {}
     for (a, b), taker in zip(best.pieces, best.takers, strict=True):
+        piece = work[a:b]
+        if grid.distance(ends[taker], piece[-1]) < grid.distance(ends[taker], piece[0]):
+            piece = piece[::-1]
+        oriented[taker] = piece
+        owner.update((index, survivors[taker].robot) for index in piece)
+    # where each robot stops: the way to a piece goes around the others' stops, since a
+    # robot parked there for good would block it (simhw refuses a body into a body)
+    stops = {i: oriented[i][-1] if i in oriented else ends[i] for i in range(len(survivors))}
+    for taker, piece in oriented.items():
+        avoid = frozenset(stop for i, stop in stops.items() if i != taker)
         s = survivors[taker]
-        routes[s.robot] = routes[s.robot] + tuple(_walk(grid, ends[taker], work[a:b]))
-        owner.update((index, s.robot) for index in work[a:b])
+        routes[s.robot] = routes[s.robot] + tuple(_walk(grid, ends[taker], piece, avoid))
     return best, Replan(routes, owner)
 
 
@@ -302,13 +323,11 @@ def _bottleneck(costs: IntArray) -> tuple[list[int], IntArray]:
     return row_of, np.array([costs[row_of[j], j] for j in range(cols_n)], dtype=np.int64)
 
 
-def _walk(grid: Grid, start: int, piece: Sequence[int]) -> list[int]:
-    """From ``start`` to the nearer end of ``piece``, then along it, bridging gaps."""
-    if grid.distance(start, piece[-1]) < grid.distance(start, piece[0]):
-        piece = piece[::-1]
+def _walk(grid: Grid, start: int, piece: Sequence[int], avoid: frozenset[int]) -> list[int]:
+    """From ``start`` along ``piece`` in its order, bridging gaps around ``avoid``."""
     out: list[int] = []
     at = start
     for place in piece:
-        out.extend(grid.path(at, place))
+        out.extend(grid.path(at, place, avoid))
         at = place
     return out

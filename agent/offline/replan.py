@@ -1,0 +1,78 @@
+"""The fleet's side of re-balancing after a death (``--recovery rebalance``): the reports
+every survivor re-plans from.
+
+When a robot learns of a death, it stops after its current move and announces a
+ReplanReport: the robots it knows dead (the re-plan's *epoch*), where it stands, the route it
+still has and what it knows covered. Once it holds, for its epoch, the report of every robot
+not known dead, it re-plans with planner.offline.rebalance from those reports alone — never
+from its own later knowledge — so every survivor computes the same re-plan, and the digest
+of the reports it used says so in its "replanned" event. A death heard meanwhile starts a new
+epoch (the newly dead robot's report, if any, no longer counts); a report of an older epoch is
+kept until its sender catches up.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+
+from bus import keys
+from bus.drops import DropCounter
+from bus.messages import ReplanReport, unpack_covered
+from planner.offline.rebalance import Replan, Survivor, plan_order, rebalance
+from planner.types import BoolArray, Plan
+
+
+class ReplanBoard:
+    """The latest ReplanReport of each robot of a fleet of ``k`` flying ``plan``."""
+
+    def __init__(self, plan: Plan, k: int, drops: DropCounter) -> None:
+        self.cycle = plan.cycle
+        self.k = k
+        self.drops = drops
+        self.rank = plan_order(plan)
+        self.reports: dict[int, ReplanReport] = {}
+
+    def on_report(self, key: str, msg: ReplanReport) -> bool:
+        """Keep ``msg`` if it makes sense; True when it is news."""
+        n = self.cycle.n
+        parsed = keys.parse(key)
+        problem = ""
+        if not 0 <= msg.robot < self.k or (parsed is not None and parsed.robot != msg.robot):
+            problem = f"replan report of robot {msg.robot} on {key}"
+        elif not all(0 <= i < n for i in (msg.position, *msg.route)):
+            problem = f"replan report of robot {msg.robot} names places off the {n}-cycle"
+        else:
+            try:
+                unpack_covered(msg.covered, n)
+            except ValueError as error:
+                problem = f"replan report of robot {msg.robot}: {error}"
+        if problem:
+            self.drops.count("replan", "invalid", problem)
+            return False
+        known = self.reports.get(msg.robot)
+        if known is not None and (msg.incarnation, len(msg.dead)) < (known.incarnation,
+                                                                     len(known.dead)):
+            return False  # an older life's, or an older epoch's re-announcement
+        self.reports[msg.robot] = msg
+        return known != msg
+
+    def missing(self, dead: tuple[int, ...]) -> list[int]:
+        """Robots not in ``dead`` whose report for epoch ``dead`` is not here yet."""
+        return [r for r in range(self.k) if r not in dead
+                and (r not in self.reports or self.reports[r].dead != dead)]
+
+    def replan(self, dead: tuple[int, ...]) -> tuple[Replan, BoolArray, str]:
+        """The re-plan of epoch ``dead`` (every report present), the coverage it knew, and
+        the digest of the reports it was made from."""
+        used = [self.reports[r] for r in range(self.k) if r not in dead]
+        covered = np.zeros(self.cycle.n, dtype=bool)
+        digest = hashlib.sha256(f"mstc-replan/1 dead={dead}\n".encode())
+        for report in used:
+            covered |= unpack_covered(report.covered, self.cycle.n)
+            digest.update(f"{report.robot} at {report.position} route {report.route}\n"
+                          .encode())
+        digest.update(np.packbits(covered).tobytes())
+        survivors = [Survivor(r.robot, r.position, r.route) for r in used]
+        return rebalance(self.cycle, covered, survivors, self.rank), covered, digest.hexdigest()
