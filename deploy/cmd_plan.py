@@ -9,7 +9,7 @@ from typing import Any
 
 from bus.argtypes import positive_int
 from deploy.errors import UsageError
-from planner.algorithms import choices_help, names
+from planner.algorithms import algorithm, choices_help, names
 from planner.geometry import cell_of
 from planner.grid import work_area
 from planner.maps import resolve_world
@@ -139,20 +139,21 @@ def run(args: argparse.Namespace) -> int:
     if (speeds or fuel) and args.algo != "opt":
         raise UsageError("--speeds and --fuel need --algo opt (paper 003, section 4.3)")
     area = work_area(grid, starts)
+    tree = build_tree(area.cells, args.tree, seed=args.seed,
+                      starts=[cell_of(s) for s in starts])
     if args.algo == "balanced":
-        from planner.balanced import balanced_plan  # scipy.optimize: only when asked for
-
-        plan = balanced_plan(area, seed=args.seed)
+        # the registry's planner, as the agents plan: balanced regions, or opt on the tree
+        # when that is better (scipy.optimize is imported only when asked for)
+        plan = algorithm("balanced").load_plan()(area, tree, "balanced", args.seed)
     else:
-        tree = build_tree(area.cells, args.tree, seed=args.seed,
-                          starts=[cell_of(s) for s in starts])
         plan = make_plan(area, tree, args.algo, speeds=speeds, fuel=fuel)
     metrics = plan_metrics(plan)
     if args.json:
         json.dump(plan_to_json(plan, metrics), sys.stdout)
         sys.stdout.write("\n")
     else:
-        tree_name = "own region per robot" if args.algo == "balanced" else args.tree
+        balanced_regions = args.algo == "balanced" and plan.tree is None
+        tree_name = "own region per robot" if balanced_regions else args.tree
         print("\n".join(summary_lines(plan, metrics, tree_name)))
         for note in plan.notes:
             print(f"note: {note}")

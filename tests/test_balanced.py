@@ -19,16 +19,20 @@ from balanced_helpers import (
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from planner.algorithms import algorithm
 from planner.balanced import balanced_plan, partition
 from planner.balanced.coverage import region_path
-from planner.balanced.plan import WALK_OUT
+from planner.balanced.plan import OPT_KEPT, WALK_OUT
 from planner.balanced.seeds import open_walk_ok, share_cell
 from planner.balanced.takeover import simulate_failures
 from planner.errors import UnsupportedPlanError
-from planner.geometry import sub_cells_of
+from planner.experiments.instances import maze_cells
+from planner.geometry import cell_of, sub_cells_of
 from planner.grid import expand, label_components, work_area
 from planner.invariants import check_coverage, check_path_moves, check_plan
+from planner.offline.plan import make_plan
 from planner.placement import random_starts
+from planner.trees import build_tree
 from planner.types import OccupancyGrid, SubCell
 
 
@@ -267,3 +271,21 @@ def test_shared_cell_division_is_always_found() -> None:
             share = share_cell(cell, list(range(count)), list(chosen), lambda _: False)
             kept = [s for _, keep, _ in share.parts for s in keep]
             assert sorted(kept) == sorted(subs)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_registrys_balanced_plan_is_never_worse_than_opt_on_the_same_tree(seed: int) -> None:
+    """Mazes (one-cell corridors) are where balanced regions lose to plain opt: the
+    registry's planner then keeps opt's plan, which the balanced robots replay too."""
+    rng = np.random.default_rng(seed)
+    grid = OccupancyGrid(expand(maze_cells(6, 9, rng)))
+    area = work_area(grid, random_starts(grid, 8, seed))
+    tree = build_tree(area.cells, "dfs", seed=seed, starts=[cell_of(s) for s in area.starts])
+    plan = algorithm("balanced").load_plan()(area, tree, "balanced", seed)
+    opt = make_plan(area, tree, "opt")
+    assert plan.algo == "balanced" and plan.makespan <= opt.makespan
+    assert plan.makespan == min(opt.makespan, balanced_plan(area, seed=seed).makespan)
+    if plan.notes[0].startswith(OPT_KEPT):
+        assert [rp.path for rp in plan.robots] == [rp.path for rp in opt.robots]
+    result = simulate_failures(plan, {plan.robots[1].robot: 9}, detection_delay=1)
+    assert result.complete

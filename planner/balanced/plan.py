@@ -15,12 +15,26 @@ from planner.types import Plan, RobotPlan, SpanningTree
 ALGO = "balanced"
 WALK_OUT = "balanced walk-out"  # note prefix of plans in which some sub-cells are revisited
 FALLBACK = "balanced fallback"  # note prefix of plans that are optimal MSTC instead
+OPT_KEPT = "balanced kept opt"  # note prefix of plans where plain opt on the tree was better
 
 
 def plan_for(area: WorkArea, tree: SpanningTree, algo: str, seed: int = 0) -> Plan:
-    """The registry's entry point (planner.algorithms): regions make their own tree."""
-    del tree, algo
-    return balanced_plan(area, seed=seed)
+    """The registry's entry point (planner.algorithms): the balanced plan, or plain opt on
+    ``tree`` (what ``--algo opt`` plans on the same instance) if its makespan is smaller, so
+    ``--algo balanced`` is never worse than ``--algo opt``."""
+    del algo
+    return better_than_opt(balanced_plan(area, seed=seed), area, tree)
+
+
+def better_than_opt(plan: Plan, area: WorkArea, tree: SpanningTree) -> Plan:
+    """``plan``, or optimal MSTC on ``tree`` (noted OPT_KEPT) when that finishes sooner."""
+    opt = make_plan(area, tree, "opt")
+    if opt.makespan >= plan.makespan:
+        return plan
+    note = (f"{OPT_KEPT}: optimal MSTC on the given tree plans {opt.makespan} moves, the "
+            f"balanced regions {plan.makespan}")
+    return Plan(algo=ALGO, cycle=opt.cycle, robots=opt.robots, tree=tree,
+                notes=(note, *opt.notes))
 
 
 def balanced_plan(area: WorkArea, *, seed: int = 0) -> Plan:

@@ -78,3 +78,24 @@ def _nearest_free(fine: BoolArray, base: SubCell, size: int,
                 seen.add((nr, nc))
                 queue.append((nr, nc))
     return found
+
+
+def maze_cells(rows: int, cols: int, rng: np.random.Generator) -> BoolArray:
+    """A (2 rows - 1) x (2 cols - 1) cell grid carved as a perfect maze (randomised
+    depth-first search): one-cell corridors, every free cell reachable one way only."""
+    cells = np.zeros((2 * rows - 1, 2 * cols - 1), dtype=bool)
+    cells[0, 0] = True
+    seen = {(0, 0)}
+    stack = [(0, 0)]
+    while stack:
+        r, c = stack[-1]
+        fresh = [(r + dr, c + dc) for dr, dc in ((0, 1), (1, 0), (0, -1), (-1, 0))
+                 if 0 <= r + dr < rows and 0 <= c + dc < cols and (r + dr, c + dc) not in seen]
+        if not fresh:
+            stack.pop()
+            continue
+        nr, nc = fresh[int(rng.integers(len(fresh)))]
+        seen.add((nr, nc))
+        cells[2 * nr, 2 * nc] = cells[r + nr, c + nc] = True
+        stack.append((nr, nc))
+    return cells
