@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/bench_recovery.py                  # the table of docs/balanced.md
     .venv/bin/python benchmarks/bench_recovery.py --seeds 5 --k 6 --coverage 0.3
     .venv/bin/python benchmarks/bench_recovery.py --algos opt,balanced --worlds office
+    .venv/bin/python benchmarks/bench_recovery.py --half                # k/2 deaths, random times
 
 Lockstep replays (planner.offline.lockstep / planner.balanced.takeover, unit moves, death
 known at once). For each instance the fault-free plan is replayed once to find the first
@@ -11,6 +12,10 @@ that step and the coverage time with ``--recovery takeover`` and ``rebalance`` i
 the fault-free makespan (plan makespan): mean and worst over the robots and instances,
 measured side by side on the same deaths. ``ideal`` is the fault-free makespan plus the
 dead robot's remaining work shared evenly among the survivors, over the fault-free makespan.
+
+With ``--half``, k/2 robots (seeded choice) die at seeded random steps of the fault-free
+makespan instead, and coverage time is divided by the ideal: fault-free makespan plus the
+dead robots' remaining moves shared among the survivors.
 
 Instances: the builtin world office with random starts from each seed, and generated
 20 x 30 coarse grids (2400 sub-cells) with 0, 60 and 120 random blocked cells (the work-area
@@ -88,6 +93,39 @@ def measure(algo: str, area: WorkArea, seed: int, fraction: float) -> list[tuple
     return rows
 
 
+def measure_half(algo: str, area: WorkArea, seed: int) -> list[tuple[float, ...]]:
+    """(takeover, rebalance) coverage time over the ideal, k/2 deaths at random steps."""
+    plan = make(algo, area, seed)
+    replay = algorithm(algo).load_lockstep()
+    rng = np.random.default_rng(10_000 + seed)
+    dead = rng.choice(plan.k, size=plan.k // 2, replace=False)
+    failures = {plan.robots[int(i)].robot: int(rng.integers(0, plan.makespan)) for i in dead}
+    left = sum(max(plan.robots[int(i)].steps - failures[plan.robots[int(i)].robot], 0)
+               for i in dead)
+    ideal = plan.makespan + left / (plan.k - len(dead))
+    out = []
+    for recovery in ("takeover", "rebalance"):
+        result = replay(plan, failures, recovery=recovery)
+        assert result.complete, (algo, area.grid.name, failures, recovery)
+        out.append(result.coverage_time / ideal)
+    return [tuple(out)]
+
+
+def main_half(args: argparse.Namespace) -> None:
+    worlds = args.worlds.split(",")
+    print(f"k/2 deaths at random steps, k = {args.k}, {args.seeds} seeds; coverage time / "
+          f"ideal (fault-free + the dead robots' remaining moves shared by the survivors)")
+    print(f"{'world':<18} {'algo':<9} {'takeover':>15} {'rebalance':>15}")
+    for algo in args.algos.split(","):
+        by_world: dict[str, list[tuple[float, ...]]] = {}
+        for name, area, seed in instances(worlds, args.k, args.seeds):
+            by_world.setdefault(name, []).extend(measure_half(algo, area, seed))
+        for name, rows in by_world.items():
+            take, rebal = zip(*rows, strict=True)
+            print(f"{name:<18} {algo:<9} {statistics.mean(take):>6.2f} (≤{max(take):.2f}) "
+                  f"{statistics.mean(rebal):>6.2f} (≤{max(rebal):.2f})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--algos", default="opt,balanced")
@@ -96,7 +134,12 @@ def main() -> None:
     parser.add_argument("--k", type=int, default=6)
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--coverage", type=float, default=0.3)
+    parser.add_argument("--half", action="store_true",
+                        help="k/2 deaths at random times instead of one at --coverage")
     args = parser.parse_args()
+    if args.half:
+        main_half(args)
+        return
     worlds = args.worlds.split(",")
     print(f"one death at {args.coverage:.0%} coverage, k = {args.k}, {args.seeds} seeds, "
           f"each robot in turn; coverage time / fault-free makespan")
