@@ -187,6 +187,24 @@ def tree_markers(scene: Scene, epoch_s: float) -> bytes:
     return encode(build(MARKERS_TYPE, markers=markers))
 
 
+def _pose_stamped(x: float, y: float, yaw: float, epoch_s: float) -> Any:
+    return build(POSE_TYPE, header=_header(epoch_s), pose=_pose(x, y, yaw))
+
+
+def pose_stamped(x: float, y: float, yaw: float, epoch_s: float) -> bytes:
+    return encode(_pose_stamped(x, y, yaw, epoch_s))
+
+
+def path(points: tuple[Point, ...], epoch_s: float) -> bytes:
+    """A path through ``points``; each pose faces the next point (the last keeps its own)."""
+    poses, yaw = [], 0.0
+    for i, (x, y) in enumerate(points):
+        if i + 1 < len(points):
+            yaw = math.atan2(points[i + 1][1] - y, points[i + 1][0] - x)
+        poses.append(_pose_stamped(x, y, yaw, epoch_s))
+    return encode(build(PATH_TYPE, header=_header(epoch_s), poses=poses))
+
+
 def log_message(line: LogLine, epoch_s: float) -> bytes:
     return encode(build(LOG_TYPE, stamp=stamp(epoch_s), level=_LOG_LEVELS[line.level],
                         name=f"mstc.{line.name}", msg=line.text))
