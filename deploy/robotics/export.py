@@ -142,6 +142,7 @@ class Exporter:
         sinks: list[Sink] = [s for s in (self._mcap and self._mcap.sink, self._bag) if s]
         self.stream = SceneStream(sinks, epoch_s)
         self._sampled: float | None = None
+        self.open = True
 
     def feed(self, record: Record) -> None:
         events = self.model.apply(record)
@@ -160,11 +161,36 @@ class Exporter:
                 sink.wire(line, at)
 
     def close(self) -> ExportCounts:
+        self.open = False
         self.stream.scene(scene(self.model))
         for sink in (self._mcap, self._bag):
             if sink is not None:
                 sink.close()
         return ExportCounts(self.records, dict(self.stream.sent))
+
+
+class McapRecorder:
+    """A live recorder writing MCAP (``mstc up --record-mcap``): the same interface as the
+    JSON Lines RecordWriter (write, flush, close), fed with every record the monitor's feed
+    receives, and the same file as ``mstc export`` of that mission's recording."""
+
+    def __init__(self, path: Path, mission: str, epoch_s: float) -> None:
+        self.path = path
+        self.exporter = Exporter(mission, epoch_s, mcap=path)
+
+    @property
+    def lines(self) -> int:
+        return self.exporter.records
+
+    def write(self, record: Record) -> None:
+        self.exporter.feed(record)
+
+    def flush(self) -> None:
+        return None  # foxglove-sdk's writer flushes its chunks itself
+
+    def close(self) -> None:
+        if self.exporter.open:
+            self.exporter.close()
 
 
 def export(recording: Recording, *, mcap: Path | None = None, rosbag2: Path | None = None,
