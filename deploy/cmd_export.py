@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from bus.argtypes import positive
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,14 +28,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        print(f"mstc export: error: {error}", file=sys.stderr)
-        return 2
-
-
-def _run(args: argparse.Namespace) -> int:
     if args.mcap is None and args.rosbag2 is None:
         raise UsageError("nothing to write: give --mcap OUT and/or --rosbag2 DIR")
     for path in (args.mcap, args.rosbag2):

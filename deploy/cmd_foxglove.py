@@ -18,7 +18,7 @@ from pathlib import Path
 from bus.argtypes import positive
 from bus.config import add_connection_arguments, settings_from_args
 from bus.errors import BusError
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 
 
 def _port(text: str) -> int:
@@ -52,14 +52,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        print(f"mstc foxglove: error: {error}", file=sys.stderr)
-        return 2
-
-
-def _run(args: argparse.Namespace) -> int:
     from deploy.cmd_monitor import _follow_run_dir
     from deploy.robotics import require_extra
 
@@ -67,9 +59,8 @@ def _run(args: argparse.Namespace) -> int:
     from deploy.monitor.app import Watcher, watch_live
     from deploy.robotics.bridge import FoxgloveScreen
 
-    _follow_run_dir(args)
     try:
-        settings = settings_from_args(args)
+        settings = _follow_run_dir(args, settings_from_args(args))
     except BusError as error:
         raise UsageError(str(error)) from error
     try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 
 DEFAULT_SUFFIX = ".png"
 

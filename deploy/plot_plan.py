@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 from deploy.figure_path import save_figure
 from planner.types import OccupancyGrid, Plan
 

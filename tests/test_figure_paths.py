@@ -13,7 +13,7 @@ from deploy.cli import main
 from deploy.monitor.recorder import RecordWriter
 from deploy.monitor.types import Header
 
-PLAN = ["plan", "--map", "open-room", "--random-robots", "2", "--plot"]
+PLAN = ["plan", "--world", "open-room", "-n", "2", "--plot"]
 TREE = ["tree-cover", "--tree", "office", "--robots", "3", "--plot"]
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import importlib.util
 
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 
 EXTRA_MODULES = {"foxglove": "foxglove-sdk", "foxglove_schemas_protobuf":
                  "foxglove-schemas-protobuf", "mcap": "mcap", "rosbags": "rosbags"}

@@ -17,7 +17,7 @@ import foxglove
 from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.errors import WriterError
 
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 from deploy.monitor.model import FleetModel
 from deploy.monitor.recorder import record_line
 from deploy.monitor.types import Record, Recording
