@@ -5,6 +5,7 @@ rosbags), compared with the recording and the fixture's brute-force truth."""
 from __future__ import annotations
 
 import json
+import subprocess
 from collections import Counter
 from pathlib import Path
 
@@ -141,3 +142,42 @@ def test_wire_lines_are_json_records(tmp_path: Path) -> None:
     assert main(["export", str(recorded(tmp_path, mission)), "--mcap", str(out)]) == 0
     first = json.loads(read_mcap(out)[0]["/mstc/wire"][0][1])
     assert set(first) == {"t", "key", "via", "kind", "msg"}
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+def test_up_records_the_same_mcap_as_an_export_of_its_recording(tmp_path: Path) -> None:
+    from conftest import pick_free_port
+    from fleet_helpers import mstc
+
+    jsonl, live, exported = tmp_path / "up.jsonl", tmp_path / "up.mcap", tmp_path / "x.mcap"
+    up = subprocess.run(
+        mstc("up", "-n", "3", "--world", "open-room", "--algo", "opt", "--time-scale", "0",
+             "--plain", "--listen", f"tcp/127.0.0.1:{pick_free_port()}", "--run-dir",
+             str(tmp_path / "run"), "--stall-timeout", "30", "--lease-ms", "5000",
+             "--dead-after", "5", "--record", str(jsonl), "--record-mcap", str(live)),
+        capture_output=True, text=True, timeout=240)
+    assert up.returncode == 0, up.stdout + up.stderr
+    assert main(["export", str(jsonl), "--mcap", str(exported)]) == 0
+    recorded_live, schemas = read_mcap(live)
+    from_file, _ = read_mcap(exported)
+    assert schemas["/mstc/coverage"] == "foxglove.Grid"
+    wire = [data for _, data in recorded_live["/mstc/wire"]]
+    assert wire == [data for _, data in from_file["/mstc/wire"]]
+    assert len(wire) == len(read_recording(jsonl).records) > 100
+    assert {t: len(ms) for t, ms in recorded_live.items()} == \
+        {t: len(ms) for t, ms in from_file.items()}
+    final = Grid.FromString(recorded_live["/mstc/coverage"][-1][1])
+    assert final.data == Grid.FromString(from_file["/mstc/coverage"][-1][1]).data
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert int((grid_field(final, "visits") > 0).sum()) == summary["covered"]
+    events = [Log.FromString(d).message for _, d in recorded_live["/mstc/events"]]
+    assert any(text.startswith("mission complete") for text in events)
+
+
+def test_record_mcap_into_a_missing_directory_is_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["up", "-n", "2", "--world", "open-room", "--record-mcap",
+                 str(tmp_path / "no" / "up.mcap")]) == 2
+    err = capsys.readouterr().err
+    assert "--record-mcap" in err and "does not exist" in err and len(err.splitlines()) == 1
