@@ -41,3 +41,32 @@ def test_kill_hw_on_a_stopped_fleet_is_one_line(tmp_path: Path, with_simhw: bool
     err = capsys.readouterr().err
     expected = "is not running (its simhw" if with_simhw else "no router answers at"
     assert expected in err and len(err.splitlines()) == 1, err
+
+
+def test_monitor_without_a_router_says_so_and_gives_up(free_port: int) -> None:
+    started = time.monotonic()
+    result = subprocess.run(
+        [sys.executable, "-m", "deploy.cli", "monitor", "--plain", "--exit-when-done",
+         "--mission", "nobody", "--connect", f"tcp/127.0.0.1:{free_port}",
+         "--duration", "600", "--connect-timeout", "2"],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert time.monotonic() - started < 30
+    lines = result.stderr.splitlines()
+    assert lines[0].startswith(f"mstc monitor: waiting for a Zenoh router at "
+                               f"tcp/127.0.0.1:{free_port}"), result.stderr
+    assert lines[-1] == (f"mstc monitor: error: no Zenoh router answered at "
+                         f"tcp/127.0.0.1:{free_port} within 2 s (start the fleet with mstc "
+                         f"up, or a router with mstc router)")
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.integration
+def test_monitor_duration_counts_from_the_start(router: str) -> None:
+    started = time.monotonic()
+    result = subprocess.run(
+        [sys.executable, "-m", "deploy.cli", "monitor", "--plain", "--mission", "quiet",
+         "--connect", router, "--duration", "2"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert time.monotonic() - started < 30
+    assert result.stdout.splitlines()[-1].split()[1] == "summary"

@@ -15,6 +15,7 @@ from rich.live import Live
 from bus.bridge import Bus
 from bus.config import ConnectionSettings, open_session_async
 from bus.messages import SCHEMA_VERSION
+from deploy.errors import FleetError
 from deploy.monitor.live import LiveFeed, poll
 from deploy.monitor.model import FleetModel
 from deploy.monitor.plain import PlainPrinter
@@ -27,6 +28,7 @@ TICK_S = 0.05
 REFRESH_S = 0.25
 WORLD_PERIOD_S = 2.0
 RENDER_SHARE = 5.0
+CONNECT_POLL_S = 0.1
 
 
 class Screen(Protocol):
@@ -159,6 +161,25 @@ async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
         finally:
             if watcher.recorder is not None:
                 watcher.recorder.close()
+
+
+async def until_connected(watcher: Watcher, settings: ConnectionSettings, limit: float,
+                          *, say: Callable[[str], None], note_after: float = 0.5) -> None:
+    """Return once ``watcher`` is connected; say what it waits for if that takes more than
+    ``note_after`` seconds, and raise FleetError after ``limit`` seconds: a monitor started
+    with no router must not wait silently for ever."""
+    where = ", ".join(settings.endpoints) or "the configured endpoints"
+    waited, noted = 0.0, False
+    while not watcher.connected:
+        if waited >= note_after and not noted:
+            say(f"waiting for a Zenoh router at {where} (mission {settings.mission}; giving "
+                f"up after {limit:g} s)")
+            noted = True
+        if waited >= limit:
+            raise FleetError(f"no Zenoh router answered at {where} within {limit:g} s "
+                             f"(start the fleet with mstc up, or a router with mstc router)")
+        await asyncio.sleep(CONNECT_POLL_S)
+        waited += CONNECT_POLL_S
 
 
 async def recorded(main: Awaitable[T], settings: ConnectionSettings, path: Path | None,
