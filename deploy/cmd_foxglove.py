@@ -20,6 +20,8 @@ from bus.config import add_connection_arguments, settings_from_args
 from bus.errors import BusError
 from deploy.errors import UsageError
 
+CONNECT_TIMEOUT_S = 30.0
+
 
 def _port(text: str) -> int:
     try:
@@ -38,6 +40,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="address to serve on (default %(default)s: this machine only)")
     parser.add_argument("--duration", type=positive, default=None, metavar="S",
                         help="stop after S seconds")
+    parser.add_argument("--connect-timeout", type=positive, default=CONNECT_TIMEOUT_S,
+                        metavar="S", help="give up (exit 2) if no router answers within S "
+                                          "seconds (default %(default)s)")
     parser.add_argument("--exit-when-done", action="store_true",
                         help="stop once the mission has a verdict and every robot is done, "
                              "dead or gone")
@@ -56,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     from deploy.robotics import require_extra
 
     require_extra()
-    from deploy.monitor.app import Watcher, watch_live
+    from deploy.monitor.app import Watcher, until_connected, watch_live
     from deploy.robotics.bridge import FoxgloveScreen
 
     try:
@@ -84,8 +89,15 @@ def run(args: argparse.Namespace) -> int:
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.add_signal_handler(sig, on_signal)
-        await watch_live(settings, watcher, stop=stop, duration=args.duration,
-                         until_settled=args.exit_when_done, world_period=args.world_period)
+        try:
+            async with asyncio.TaskGroup() as group:
+                group.create_task(until_connected(watcher, settings, args.connect_timeout,
+                                                  say=_say))
+                await watch_live(settings, watcher, stop=stop, duration=args.duration,
+                                 until_settled=args.exit_when_done,
+                                 world_period=args.world_period)
+        except* (BusError, UsageError) as failed:
+            raise failed.exceptions[0] from None
 
     try:
         asyncio.run(main())
@@ -96,3 +108,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         screen.stop()
     return 0
+
+
+def _say(text: str) -> None:
+    print(f"mstc foxglove: {text}", file=sys.stderr, flush=True)
