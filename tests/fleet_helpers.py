@@ -44,7 +44,7 @@ def start_simhw(world: Path, starts: Sequence[SubCell], router: str, mission: st
                 time_scale: float, *extra: str, stdout: int | IO[str] | None = subprocess.PIPE,
                 stderr: int | IO[str] | None = subprocess.PIPE) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        mstc("simhw", "--world", str(world), "--robots", robots_arg(starts),
+        mstc("simhw", "--world", str(world), "--starts", robots_arg(starts),
              "--time-scale", str(time_scale), *extra, "--connect", router,
              "--mission", mission),
         stdin=subprocess.DEVNULL, stdout=stdout, stderr=stderr, text=True)

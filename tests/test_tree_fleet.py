@@ -18,7 +18,7 @@ from fleet_helpers import mission_bus, mstc, stop_processes
 
 from bus import keys
 from bus.bridge import Bus
-from bus.tree_messages import RadioStats, TreeReport
+from bus.messages import RadioStats, TreeReport
 from deploy.fleet import ProcessRecord, is_running
 from planner.treecover.failures import run_with_failures
 from planner.treecover.sim import run_coverage
