@@ -239,7 +239,8 @@ def lockstep_failures(plan: Plan, moves: dict[int, int]) -> dict[int, int]:
 
 
 @pytest.mark.parametrize(("seed", "algo", "count"), [
-    (1, "nb", K - 1), pytest.param(2, "bt", 2, marks=pytest.mark.slow),
+    pytest.param(1, "nb", K - 1, marks=pytest.mark.slow),
+    pytest.param(2, "bt", 2, marks=pytest.mark.slow),
     pytest.param(3, "opt", 1, marks=pytest.mark.slow)])
 async def test_fleet_survives_sigkills_as_the_takeover_semantics_say(
         fleet_bus: Bus, router: str, world: Path, seed: int, algo: str, count: int) -> None:
@@ -307,6 +308,7 @@ def garbage(bus: Bus) -> None:
         bus.publish(key, msg)
 
 
+@pytest.mark.slow
 async def test_garbage_is_counted_and_sigterm_leaves_cleanly(
         fleet_bus: Bus, router: str, world: Path) -> None:
     fleet = await make_fleet(fleet_bus, router, world, "bt")

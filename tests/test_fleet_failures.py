@@ -183,7 +183,8 @@ async def world_state(bus: Bus) -> WorldState:
 
 
 # Seed 3: opt, k - 1 = 3 robots killed; 16: bt, 2 killed; 21: nb, 1 killed.
-@pytest.mark.parametrize("seed", [3, 16, pytest.param(21, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("seed", [pytest.param(3, marks=pytest.mark.slow), 16,
+                                  pytest.param(21, marks=pytest.mark.slow)])
 async def test_offline_fleet_survives_seeded_sigkills_as_the_semantics_say(
         bus: Bus, router: str, tmp_path: Path, seed: int) -> None:
     world = write_room(tmp_path, ROOM)
@@ -213,7 +214,8 @@ async def test_offline_fleet_survives_seeded_sigkills_as_the_semantics_say(
 
 
 # Seeds 42: k - 1 = 2 of 3 robots killed; 41: 1 killed.
-@pytest.mark.parametrize("seed", [42, pytest.param(41, marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [42, 41])
 async def test_ormstc_fleet_survives_seeded_sigkills(bus: Bus, router: str, tmp_path: Path,
                                                      seed: int) -> None:
     world = write_room(tmp_path, SMALL_ROOM)
@@ -281,6 +283,7 @@ def summary_of(run_dir: Path, grid: OccupancyGrid,
     return summary
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [51])
 async def test_up_ormstc_with_a_robot_killed_mid_mission(bus: Bus, router: str,
                                                          tmp_path: Path, seed: int) -> None:
@@ -324,6 +327,7 @@ def check_body_failure(heard: Heard, case: OfflineCase, grid: OccupancyGrid, vic
     check_offline(heard, case, grid, {victim})
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [10])  # nb; robot 2 plans 45 moves, the others 6-44
 async def test_up_kill_hw_at_a_percentage_fails_a_robot_mid_section(
         bus: Bus, router: str, tmp_path: Path, seed: int) -> None:
@@ -343,6 +347,7 @@ async def test_up_kill_hw_at_a_percentage_fails_a_robot_mid_section(
     check_body_failure(heard, case, grid, victim, tmp_path / "run", code, output)
 
 
+@pytest.mark.slow
 async def test_mstc_kill_hw_fails_a_running_robot_mid_section(bus: Bus, router: str,
                                                               tmp_path: Path) -> None:
     world = write_room(tmp_path, ROOM)

@@ -264,6 +264,7 @@ async def test_four_robots_cover_everything_once(bus: Bus, router: str, room: Pa
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 async def test_a_robot_killed_mid_mission_is_taken_over(bus: Bus, router: str,
                                                         room: Path) -> None:
     victim = random.Random(4).randrange(len(STARTS))
@@ -295,6 +296,7 @@ async def test_a_robot_killed_mid_mission_is_taken_over(bus: Bus, router: str,
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 async def test_one_sonar_at_a_time_completes(bus: Bus, router: str, room: Path) -> None:
     starts = STARTS[:3]
     fleet = await make_fleet(bus, router, room, starts)
@@ -310,6 +312,7 @@ async def test_one_sonar_at_a_time_completes(bus: Bus, router: str, room: Path) 
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 @pytest.mark.parametrize("single", [False, True], ids=["all", "one-at-a-time"])
 async def test_pillars_smaller_than_a_cell(bus: Bus, router: str, tmp_path: Path,
                                            single: bool) -> None:

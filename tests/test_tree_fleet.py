@@ -89,6 +89,7 @@ def test_radio_forwards_only_to_robots_on_the_same_or_an_adjacent_node(router: s
     assert stats.transmissions == 3 and stats.deliveries == 4
 
 
+@pytest.mark.slow
 def test_agents_give_up_when_a_robot_never_reports(router: str) -> None:
     mission = "tree-missing"
     tree = ["--tree", "perfect:N=2,H=2", "--robots", "3"]
