@@ -30,6 +30,7 @@ import pytest
 from fleet_helpers import (
     Heard,
     LocalFleet,
+    all_heard,
     fail_when,
     listen,
     mission_bus,
@@ -40,6 +41,7 @@ from fleet_helpers import (
 from ormstc_oracles import must_cover
 from test_agent_fleet import lockstep_failures
 from test_fleet_unit import reachable_oracle
+from waiting import through_router
 
 from agent.plan import compute_plan
 from bus import keys
@@ -205,7 +207,7 @@ async def test_offline_fleet_survives_seeded_sigkills_as_the_semantics_say(
         await fleet.finish(set(range(K)) - victims, TIMEOUT)
         assert not due, f"robots {sorted(due)} never reached their kill point"
         assert all(fleet.agents[v].wait(5) == -signal.SIGKILL for v in victims)
-        await asyncio.sleep(0.3)  # the last ground-truth messages
+        await all_heard(bus, heard.walks)
         check_offline(heard, case, grid, victims)
         dead = {d.robot for d in heard.deaths if d.reason != "leaving"}
         assert victims <= dead, "a SIGKILLed robot was never declared dead"
@@ -235,7 +237,7 @@ async def test_ormstc_fleet_survives_seeded_sigkills(bus: Bus, router: str, tmp_
         fleet.start("ormstc", 0, *AGENT_ARGS)
         await fleet.finish(set(range(k)) - victims, TIMEOUT)
         assert not due, f"robots {sorted(due)} never reached their kill point"
-        await asyncio.sleep(0.2)  # the last published tree edges
+        await through_router(bus, router)  # the last published tree edges
         state = await world_state(bus)
         bodies = [(t.pose[0], t.pose[1]) for t in state.robots if t.robot in victims]
         check_ormstc(world_visits(state), grid, starts, heard, victims, bodies)
