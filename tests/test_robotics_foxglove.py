@@ -21,6 +21,7 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from test_monitor_fixtures import open_room, run_mission, two_robot_walks
 from test_robotics_encoders import grid_field
+from waiting import wait_until
 
 from deploy.monitor.app import Watcher
 from deploy.monitor.model import FleetModel
@@ -60,7 +61,8 @@ async def test_a_late_viewer_gets_the_current_state_and_an_early_one_the_events(
         stop = asyncio.Event()
         async with asyncio.TaskGroup() as group:
             early = group.create_task(watch(screen.port, 2.0))
-            await asyncio.sleep(0.5)  # the early viewer has subscribed
+            await wait_until(lambda: screen.listener.subscriptions == len(TOPICS), 10.0,
+                             "the early viewer's subscriptions")
             watcher.feed(mission.records)
             group.create_task(refreshing(screen, watcher.model, stop))
             late = await watch(screen.port, 5.0, until=has_state)
@@ -107,6 +109,7 @@ def cover_truth(recording: Path, shape: tuple[int, int]) -> tuple[np.ndarray, np
 async def test_a_viewer_sees_a_real_mission_end_in_simhws_ground_truth(
         router: str, tmp_path: Path) -> None:
     port, mission, record = pick_free_port(), "fox-e2e", tmp_path / "up.jsonl"
+    free = resolve_world("open-room").free
     common = ("--connect", router, "--mission", mission)
     bridge = await asyncio.create_subprocess_exec(
         *mstc("foxglove", "--port", str(port), "--world-period", "0.5", *common),
@@ -128,19 +131,24 @@ async def test_a_viewer_sees_a_real_mission_end_in_simhws_ground_truth(
             out, _ = await asyncio.wait_for(up.communicate(), 120)
             assert up.returncode == 0, out.decode()
         early = during.result()
-        await asyncio.sleep(1.5)  # the bridge's last world query after the end
-        late = await watch(port, 10.0, until=has_state)
+        truth_visits, truth_owner = cover_truth(record, free.shape)
+
+        def final(got: Received) -> bool:
+            data = got.last("/mstc/coverage")
+            return has_state(got) and data is not None and np.array_equal(
+                grid_field(Grid.FromString(data), "visits"), truth_visits)
+
+        # A late viewer; the bridge may still be merging the mission's last messages.
+        late = await watch(port, 30.0, until=final)
     finally:
         bridge.terminate()
         await asyncio.wait_for(bridge.wait(), 30)
     assert bridge.returncode in (0, -15)
     assert advertised(late) == TOPICS
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    free = resolve_world("open-room").free
     grid = Grid.FromString(late.last("/mstc/coverage") or b"")
     visits, owner = grid_field(grid, "visits"), grid_field(grid, "owner")
     np.testing.assert_array_equal(grid_field(grid, "free"), free.astype(np.uint8))
-    truth_visits, truth_owner = cover_truth(record, free.shape)
     np.testing.assert_array_equal(visits, truth_visits)
     np.testing.assert_array_equal(owner, truth_owner)
     assert int((visits > 0).sum()) == summary["covered"] == summary["reachable"]

@@ -6,6 +6,7 @@ delivered to a subscriber that arrives after it was published (transient local).
 from __future__ import annotations
 
 import subprocess
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -17,6 +18,7 @@ import zenoh
 import zenoh.ext
 from fleet_helpers import mstc, stop_processes
 from test_monitor_fixtures import open_room, run_mission, two_robot_walks
+from waiting import wait_until_sync
 
 from bus.config import ConnectionSettings, open_session
 from deploy.monitor.app import Watcher
@@ -35,11 +37,19 @@ def session(router: str) -> Iterator[zenoh.Session]:
         yield opened
 
 
+def routed(sender: zenoh.Session, receiver: zenoh.Session) -> None:
+    """Return once a put of ``sender`` reaches ``receiver``: the router then knows every
+    subscription ``receiver`` declared before (declarations reach it in order)."""
+    arrived = threading.Event()
+    probe = receiver.declare_subscriber("test-probe/ros-bridge", lambda _: arrived.set())
+    try:
+        wait_for(lambda: sender.put("test-probe/ros-bridge", b"probe") or arrived.wait(0.1))
+    finally:
+        probe.undeclare()
+
+
 def wait_for(condition: Any, seconds: float = 10.0) -> None:
-    deadline = time.monotonic() + seconds
-    while not condition():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.05)
+    wait_until_sync(condition, seconds, "the bridge's samples or tokens")
 
 
 def test_the_bridge_speaks_rmw_zenoh(router: str) -> None:
@@ -53,10 +63,10 @@ def test_the_bridge_speaks_rmw_zenoh(router: str) -> None:
             paths: list[zenoh.Sample] = []
             subscribers = [ros_side.declare_subscriber(pose_key, poses.append),
                            ros_side.declare_subscriber(path_key, paths.append)]
+            routed(bridge_side, ros_side)
             watcher = Watcher(screen)
             watcher.feed(mission.records[:len(mission.records) // 2])
             screen.refresh(watcher.model, FeedStats())
-            time.sleep(0.3)
             watcher.feed(mission.records[len(mission.records) // 2:])
             screen.refresh(watcher.model, FeedStats())
             wait_for(lambda: len(poses) >= 2 and len(paths) >= 2)

@@ -33,9 +33,11 @@ class _Subscriptions(ServerListener):
     def __init__(self) -> None:
         self.resend = threading.Event()
         self.clients: set[int] = set()
+        self.subscriptions = 0
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         self.clients.add(client.id)
+        self.subscriptions += 1
         self.resend.set()
 
 
