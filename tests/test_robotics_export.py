@@ -112,6 +112,9 @@ def test_rosbag2_holds_the_same_channels_as_ros_types(tmp_path: Path) -> None:
                      "/mstc/coverage_owner": ros.MAP_TYPE, "/mstc/robots": ros.MARKERS_TYPE,
                      "/mstc/tree": ros.MARKERS_TYPE, "/mstc/events": ros.LOG_TYPE,
                      "/mstc/wire": ros.STRING_TYPE}
+    with Reader(bag) as reader:
+        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
+    assert [(q.durability.name, q.depth) for q in qos["/map"]] == [("TRANSIENT_LOCAL", 1)]
     owners = counts.pop("/mstc/coverage_owner")
     assert counts == mcap_counts and owners == counts["/mstc/coverage"]
     assert [parse_line(line) for line in wire] == mission.records

@@ -14,6 +14,14 @@ from pathlib import Path
 from typing import Literal
 
 import foxglove
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
 from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.errors import WriterError
 
@@ -44,7 +52,13 @@ WIRE_SCHEMA = {"title": "mstc.Record", "type": "object",
                "properties": {"t": {"type": "number"}, "key": {"type": "string"},
                               "via": {"enum": ["sub", "query", "token"]},
                               "kind": {"type": "string"}, "msg": {"type": "object"}}}
-ROSBAG_VERSION: Literal[8, 9] = 8  # readable by Humble's successors and by rosbags; 9 needs Jazzy
+ROSBAG_VERSION: Literal[8, 9] = 8  # rosbag2's metadata version of Iron; later ROS 2 reads it
+_FOREVER = QosTime(sec=0, nsec=0)  # rosbag2's "default" duration
+# The map as a latched topic: `ros2 bag play` then offers it to late subscribers (RViz).
+MAP_QOS = Qos(history=QosHistory.KEEP_LAST, depth=1, reliability=QosReliability.RELIABLE,
+              durability=QosDurability.TRANSIENT_LOCAL, deadline=_FOREVER, lifespan=_FOREVER,
+              liveliness=QosLiveliness.AUTOMATIC, liveliness_lease_duration=_FOREVER,
+              avoid_ros_namespace_conventions=False)
 
 
 @dataclass(frozen=True)
@@ -87,7 +101,7 @@ class RosbagSink:
             raise UsageError(f"cannot write {path}: {error}") from error
         add = self.writer.add_connection
         self.topics = {
-            MAP: add(MAP, ros.MAP_TYPE, typestore=store),
+            MAP: add(MAP, ros.MAP_TYPE, typestore=store, offered_qos_profiles=(MAP_QOS,)),
             COVERAGE: add(COVERAGE, ros.MAP_TYPE, typestore=store),
             COVERAGE_OWNERS: add(COVERAGE_OWNERS, ros.MAP_TYPE, typestore=store),
             ROBOTS: add(ROBOTS, ros.MARKERS_TYPE, typestore=store),
