@@ -59,8 +59,8 @@ def dds_type_name(typename: str) -> str:
 
 
 def type_hash(typename: str) -> str:
-    """The REP 2011 type hash, ``RIHS01_`` and 64 hex digits (rosbags computes it from the
-    type definitions; no ROS needed)."""
+    """ROS 2's type description hash, ``RIHS01_`` and 64 hex digits (rosbags computes it
+    from the type definitions; no ROS needed)."""
     return ros.typestore().hash_rihs01(typename)
 
 
