@@ -91,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
                 loop.add_signal_handler(sig, on_signal)
         try:
             async with asyncio.TaskGroup() as group:
-                group.create_task(until_connected(watcher, settings, args.connect_timeout,
+                group.create_task(until_connected(lambda: watcher.connected, settings,
+                                                  args.connect_timeout,
                                                   say=_say))
                 await watch_live(settings, watcher, stop=stop, duration=args.duration,
                                  until_settled=args.exit_when_done,

@@ -110,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
         limit = min(args.connect_timeout, args.duration or args.connect_timeout)
         try:
             async with asyncio.TaskGroup() as group:
-                group.create_task(until_connected(watcher, settings, limit, say=_say))
+                group.create_task(until_connected(lambda: watcher.connected, settings, limit,
+                                                  say=_say))
                 if args.duration is not None:
                     group.create_task(_stop_after(stop, args.duration))
                 await watch_live(settings, watcher, stop=stop,

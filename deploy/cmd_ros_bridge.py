@@ -21,6 +21,8 @@ from bus.config import add_connection_arguments, open_session_async, settings_fr
 from bus.errors import BusError
 from deploy.errors import UsageError
 
+CONNECT_TIMEOUT_S = 30.0
+
 
 def _domain(text: str) -> int:
     try:
@@ -41,6 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "rmw_zenohd's tcp/localhost:7447; default: the mission's)")
     parser.add_argument("--duration", type=positive, default=None, metavar="S",
                         help="stop after S seconds")
+    parser.add_argument("--connect-timeout", type=positive, default=CONNECT_TIMEOUT_S,
+                        metavar="S", help="give up (exit 2) if no router answers within S "
+                                          "seconds (default %(default)s)")
     parser.add_argument("--exit-when-done", action="store_true",
                         help="stop once the mission has a verdict and every robot is done, "
                              "dead or gone")
@@ -59,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from deploy.robotics import require_extra
 
     require_extra()
-    from deploy.monitor.app import Watcher, watch_live
+    from deploy.monitor.app import Watcher, until_connected, watch_live
     from deploy.robotics.ros_bridge import RosScreen
 
     try:
@@ -83,18 +88,27 @@ def run(args: argparse.Namespace) -> int:
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.add_signal_handler(sig, on_signal)
-        async with open_session_async(ros_settings) as session:
-            screen = RosScreen(session, args.domain)
-            connected = True
-            print(f"bridging mission {settings.mission} to ROS 2 domain {args.domain} "
-                  f"(node /{screen.node.name}, zid {screen.node.zid})", file=sys.stderr,
-                  flush=True)
-            try:
-                await watch_live(settings, Watcher(screen), stop=stop, duration=args.duration,
-                                 until_settled=args.exit_when_done,
-                                 world_period=args.world_period)
-            finally:
-                screen.stop()
+        watchers: list[Watcher] = []
+        try:
+            async with asyncio.TaskGroup() as group:
+                group.create_task(until_connected(
+                    lambda: bool(watchers) and watchers[0].connected, settings,
+                    args.connect_timeout, say=_say))
+                async with open_session_async(ros_settings) as session:
+                    screen = RosScreen(session, args.domain)
+                    connected = True
+                    _say(f"bridging mission {settings.mission} to ROS 2 domain "
+                         f"{args.domain} (node /{screen.node.name}, zid {screen.node.zid})")
+                    watchers.append(Watcher(screen))
+                    try:
+                        await watch_live(settings, watchers[0], stop=stop,
+                                         duration=args.duration,
+                                         until_settled=args.exit_when_done,
+                                         world_period=args.world_period)
+                    finally:
+                        screen.stop()
+        except* (BusError, UsageError) as failed:
+            raise failed.exceptions[0] from None
 
     try:
         asyncio.run(main())
@@ -103,3 +117,7 @@ def run(args: argparse.Namespace) -> int:
     except asyncio.CancelledError:
         return 130
     return 0
+
+
+def _say(text: str) -> None:
+    print(f"mstc ros-bridge: {text}", file=sys.stderr, flush=True)

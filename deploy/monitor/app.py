@@ -163,14 +163,15 @@ async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
                 watcher.recorder.close()
 
 
-async def until_connected(watcher: Watcher, settings: ConnectionSettings, limit: float,
-                          *, say: Callable[[str], None], note_after: float = 0.5) -> None:
-    """Return once ``watcher`` is connected; say what it waits for if that takes more than
+async def until_connected(connected: Callable[[], bool], settings: ConnectionSettings,
+                          limit: float, *, say: Callable[[str], None],
+                          note_after: float = 0.5) -> None:
+    """Return once ``connected()``; say what it waits for if that takes more than
     ``note_after`` seconds, and raise FleetError after ``limit`` seconds: a monitor started
     with no router must not wait silently for ever."""
     where = ", ".join(settings.endpoints) or "the configured endpoints"
     waited, noted = 0.0, False
-    while not watcher.connected:
+    while not connected():
         if waited >= note_after and not noted:
             say(f"waiting for a Zenoh router at {where} (mission {settings.mission}; giving "
                 f"up after {limit:g} s)")
