@@ -184,3 +184,16 @@ def test_record_mcap_into_a_missing_directory_is_one_line(
                  str(tmp_path / "no" / "up.mcap")]) == 2
     err = capsys.readouterr().err
     assert "--record-mcap" in err and "does not exist" in err and len(err.splitlines()) == 1
+
+
+def test_a_missing_extra_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                     capsys: pytest.CaptureFixture[str]) -> None:
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "rosbags" else real(name, *a))
+    source = recorded(tmp_path, run_mission(open_room(), two_robot_walks()))
+    assert main(["export", str(source), "--mcap", str(tmp_path / "x.mcap")]) == 2
+    err = capsys.readouterr().err
+    assert err == "mstc export: error: needs rosbags: pip install 'mstc-swarm[robotics]'\n"
