@@ -57,7 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from deploy.cmd_monitor import _follow_run_dir
+    from deploy.cmd_monitor import follow_run_dir
     from deploy.robotics import require_extra
 
     require_extra()
@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from deploy.robotics.bridge import FoxgloveScreen
 
     try:
-        settings = _follow_run_dir(args, settings_from_args(args))
+        settings = follow_run_dir(args, settings_from_args(args))
     except BusError as error:
         raise UsageError(str(error)) from error
     try:

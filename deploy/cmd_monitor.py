@@ -48,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_connection_arguments(parser)
 
 
-def _follow_run_dir(args: argparse.Namespace,
+def follow_run_dir(args: argparse.Namespace,
                     settings: ConnectionSettings) -> ConnectionSettings:
     """Point the monitor at a fleet started by `mstc up` or `mstc tree-fleet` (its mission
     name is unique per run). An explicit --mission (or MSTC_MISSION) wins; without a run
@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     try:
-        settings = _follow_run_dir(args, settings_from_args(args))
+        settings = follow_run_dir(args, settings_from_args(args))
     except BusError as error:
         raise UsageError(str(error)) from error
     if args.record is not None and not args.record.parent.is_dir():

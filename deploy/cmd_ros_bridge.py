@@ -60,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from deploy.cmd_monitor import _follow_run_dir
+    from deploy.cmd_monitor import follow_run_dir
     from deploy.robotics import require_extra
 
     require_extra()
@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from deploy.robotics.ros_bridge import RosScreen
 
     try:
-        settings = _follow_run_dir(args, settings_from_args(args))
+        settings = follow_run_dir(args, settings_from_args(args))
     except BusError as error:
         raise UsageError(str(error)) from error
     ros_settings = settings if not args.ros_connect else \
