@@ -165,6 +165,7 @@ class UpSettings:
     simhw_args: tuple[str, ...] = ()
     plain: bool = False
     record: Path | None = None
+    record_mcap: Path | None = None
 
     @property
     def own_router(self) -> bool:
