@@ -45,7 +45,8 @@ class Credentials:
 
     @property
     def roles(self) -> tuple[Role, ...]:
-        return tuple(sorted(parse_role(name) for name in self.passwords))
+        return tuple(sorted((parse_role(name) for name in self.passwords),
+                            key=lambda role: role.rank))
 
     @property
     def robots(self) -> tuple[int, ...]:

@@ -16,7 +16,7 @@ SERVICE_KINDS: tuple[RoleKind, ...] = ("simhw", "operator", "observer")
 _ROBOT_RE = re.compile(r"^robot_(0|[1-9][0-9]{0,5})$")
 
 
-@dataclass(frozen=True, order=True)
+@dataclass(frozen=True)
 class Role:
     kind: RoleKind
     robot: int | None = None
@@ -33,6 +33,13 @@ class Role:
 
     def __str__(self) -> str:
         return self.name
+
+    @property
+    def rank(self) -> tuple[int, int]:
+        """Robots by id, then the services: the order of listings."""
+        if self.robot is not None:
+            return (0, self.robot)
+        return (1, SERVICE_KINDS.index(self.kind))
 
 
 def robot(robot_id: int) -> Role:
