@@ -30,7 +30,7 @@ from collections import Counter
 
 import numpy as np
 
-from agent.ormstc_wire import WIRE_TYPES
+from agent.ormstc.wire import WIRE_TYPES
 from bus import keys
 from bus.bridge import BoundedFifo, Bus
 from bus.codec import encode

@@ -33,7 +33,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "tree-cover": ("deploy.cmd_tree_cover", "connected coverage of a tree (NCOCTA / COCTA)"),
     "tree-fleet": ("deploy.cmd_tree_fleet", "NCOCTA / COCTA as a fleet: router, radio, K agents"),
     "radio": ("simhw.radio", "run the radio relay of tree coverage (same or adjacent node)"),
-    "tree-agent": ("agent.tree_agent", "run one robot of tree coverage (NCOCTA / COCTA)"),
+    "tree-agent": ("agent.tree.command", "run one robot of tree coverage (NCOCTA / COCTA)"),
     "repro-mstc": ("deploy.repro_mstc", "reproduce paper 003 Fig. 4/5 (NB/BT/opt MSTC)"),
     "repro-createtree": ("deploy.repro_createtree", "reproduce paper 000 (Create Tree)"),
     "repro-tmstc": ("deploy.repro_tmstc", "reproduce paper 002 Tables II/III (TMSTC*)"),

@@ -96,7 +96,7 @@ async def listen(bus: Bus, heard: Heard) -> None:
     """Subscribe ``heard`` to its mission's ground truth and agent reports (call it before
     any fleet process starts)."""
     # Imported here so that the offline tests do not depend on the ORMSTC agent's modules.
-    from agent.ormstc_wire import WIRE_TYPES
+    from agent.ormstc.wire import WIRE_TYPES
     from bus.messages import OrmstcStart, OrmstcTreeEdge, OrmstcWire
 
     m = bus.mission

@@ -23,13 +23,13 @@ import numpy as np
 import pytest
 from fleet_helpers import mission_bus, mstc, start_simhw, stop_processes, write_room
 
-from agent.plan import compute_plan, plan_digest
-from agent.types import AgentState
+from agent.offline.plan import compute_plan, plan_digest
 from bus import keys
 from bus.bridge import BoundedFifo, Bus, Received
 from bus.codec import encode
 from bus.config import ConnectionSettings
 from bus.messages import (
+    AgentState,
     CoverEvent,
     DeathNotice,
     MissionStatus,

@@ -12,14 +12,21 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agent.errors import FencedError, HardwareError
-from agent.hardware import Hardware
-from agent.peers import PeerTable
-from agent.plan import compute_plan
-from agent.types import AgentState, pack_covered, unpack_covered
+from agent.core.errors import FencedError, HardwareError
+from agent.offline.hardware import Hardware
+from agent.offline.peers import PeerTable
+from agent.offline.plan import compute_plan
 from bus.bridge import Received
 from bus.drops import DropCounter
-from bus.messages import DeathNotice, HwCommand, Progress, RobotStatus
+from bus.messages import (
+    AgentState,
+    DeathNotice,
+    HwCommand,
+    Progress,
+    RobotStatus,
+    pack_covered,
+    unpack_covered,
+)
 from planner.errors import PlannerError
 from planner.invariants import check_path_moves
 from planner.offline.machine import Finished, MoveTo, OfflineRobot, WaitFor

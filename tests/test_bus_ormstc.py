@@ -1,6 +1,6 @@
 """ORMSTC on the wire: every ORMSTC bus message round-trips, strict decoding rejects, the
 conversions to and from planner.ormstc's messages are inverse, and a receiver drops what it
-must (agent.ormstc_wire.Inbound)."""
+must (agent.ormstc.wire.Inbound)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import zenoh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agent.ormstc_wire import WIRE_TYPES, Inbound, from_wire, key_for, to_wire
+from agent.ormstc.wire import WIRE_TYPES, Inbound, from_wire, key_for, to_wire
 from bus import keys, qos
 from bus.codec import decode, decode_any, encode
 from bus.drops import DropCounter

@@ -41,7 +41,7 @@ from ormstc_oracles import must_cover
 from test_agent_fleet import lockstep_failures
 from test_fleet_unit import reachable_oracle
 
-from agent.plan import compute_plan
+from agent.offline.plan import compute_plan
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import WorldState, world_visits

@@ -19,7 +19,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agent.plan import compute_plan, plan_digest
+from agent.offline.plan import compute_plan, plan_digest
 from bus import argtypes
 from bus.messages import (
     CoverEvent,

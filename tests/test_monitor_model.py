@@ -229,7 +229,7 @@ def test_ormstc_late_and_midway_joiners_learn_trees_and_claims_from_state_replie
     a monitor fed the agents' state replies (built by the agents' own TreeBook) at some
     point, then the rest of the stream, ends with the same edges, owners and open claims as
     one that heard every message. Oracle: the full watch."""
-    from agent.ormstc_wire import TreeBook
+    from agent.ormstc.wire import TreeBook
     from bus.messages import AgentState, OrmstcClaim, OrmstcTreeEdge
 
     owned: dict[tuple[int, int], int] = {}
@@ -263,8 +263,8 @@ def test_ormstc_late_and_midway_joiners_learn_trees_and_claims_from_state_replie
 
 
 def test_planned_tree_is_the_agents_tree_once_map_starts_kind_and_seed_are_known() -> None:
-    """Oracle: the plan the agents themselves compute (agent.plan.compute_plan)."""
-    from agent.plan import compute_plan
+    """Oracle: the plan the agents themselves compute (agent.offline.plan.compute_plan)."""
+    from agent.offline.plan import compute_plan
     from bus.messages import AgentState
     from planner.types import OccupancyGrid
 

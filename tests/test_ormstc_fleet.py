@@ -28,7 +28,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from ormstc_oracles import must_cover
 
-from agent.ormstc_sensing import (
+from agent.ormstc.sensing import (
     HEADING_DELTA,
     SonarMap,
     ahead,
@@ -37,7 +37,7 @@ from agent.ormstc_sensing import (
     near_distance,
     sub_cells,
 )
-from agent.ormstc_wire import WIRE_TYPES
+from agent.ormstc.wire import WIRE_TYPES
 from bus import keys
 from bus.bridge import BoundedFifo, Bus
 from bus.messages import (
@@ -225,7 +225,7 @@ def check_complete(state: WorldState, grid: OccupancyGrid, starts: tuple[SubCell
 
 def check_redundancy(fleet: Fleet, visits: np.ndarray) -> None:
     """Each sub-cell entered once, a start twice (its robot comes home), plus the steps aside
-    and back the agents made to look at a cell from beside (agent.ormstc_body.look)."""
+    and back the agents made to look at a cell from beside (agent.ormstc.body.look)."""
     assert set(fleet.look_steps) == set(range(len(fleet.starts))), "a completion is missing"
     allowed = np.ones_like(visits, dtype=np.int64)
     for r, c in fleet.starts:

@@ -12,11 +12,11 @@ from typing import Any
 
 import pytest
 
-from agent import hw_link
-from agent.errors import HardwareError
-from agent.hw_link import HwLink, NoReplyError, facing, standing_on
-from agent.ormstc_body import Body
-from agent.ormstc_wire import Inbound, Rejoin, to_wire
+from agent.core import hw_link
+from agent.core.errors import HardwareError
+from agent.core.hw_link import HwLink, NoReplyError, facing, standing_on
+from agent.ormstc.body import Body
+from agent.ormstc.wire import Inbound, Rejoin, to_wire
 from bus import keys
 from bus.drops import DropCounter
 from bus.inbox import Received

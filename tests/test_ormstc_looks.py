@@ -1,4 +1,4 @@
-"""agent.ormstc_looks: sensing steps numbered for the wire, and glances after moves that
+"""agent.ormstc.looks: sensing steps numbered for the wire, and glances after moves that
 spare looks from beside. A stand-in body with simhw's ray cast and bump rule
 (tests/test_ormstc_sensing.py) replaces simhw; the oracle for coverage is the lockstep
 simulator."""
@@ -12,9 +12,9 @@ import numpy as np
 from hypothesis import given, settings
 from test_ormstc_sensing import NOBODY, StandIn, lockstep_covered, worlds
 
-from agent.ormstc_body import look
-from agent.ormstc_looks import MarkedSteps, glance
-from agent.ormstc_sensing import SonarMap, ahead, direction_to, shows_news
+from agent.ormstc.body import look
+from agent.ormstc.looks import MarkedSteps, glance
+from agent.ormstc.sensing import SonarMap, ahead, direction_to, shows_news
 from planner.grid import coarsen
 from planner.maps.worlds import builtin_world
 from planner.ormstc.machine import OrmstcMachine
@@ -70,7 +70,7 @@ class Alone:
 
 
 async def cover_alone(blocked: np.ndarray, start: SubCell, glances: bool) -> Alone:
-    """One robot's machine driven as agent.ormstc_driver does: looks through MarkedSteps,
+    """One robot's machine driven as agent.ormstc.driver does: looks through MarkedSteps,
     and with ``glances`` a glance after every move."""
     machine = OrmstcMachine(MachineConfig(robot=0, team=1, start=(float(start[0]),
                                           float(start[1])), sense_mode=SenseMode.ALL,

@@ -3,7 +3,7 @@
 Oracles: the exact cell status of planner.ormstc.lockstep (a cell is an obstacle if any of its four
 sub-cells is blocked or off the map), with the readings cast by simhw's own ``sonar_range``;
 and, for whole missions of one robot, the sub-cells the lockstep simulator covers from the
-same start. A stand-in body (no processes) answers ``agent.ormstc_body.look``.
+same start. A stand-in body (no processes) answers ``agent.ormstc.body.look``.
 
 ``.venv/bin/python tests/test_ormstc_sensing.py`` prints what looking costs on a few worlds
 (docs/ormstc.md, "Sensing with a thin sonar").
@@ -19,8 +19,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agent.ormstc_body import look
-from agent.ormstc_sensing import (
+from agent.ormstc.body import look
+from agent.ormstc.sensing import (
     HEADING_DELTA,
     BodyTest,
     SonarMap,

@@ -89,14 +89,17 @@ def test_radio_forwards_only_to_robots_on_the_same_or_an_adjacent_node(router: s
     assert stats.transmissions == 3 and stats.deliveries == 4
 
 
-def test_agents_give_up_when_a_robot_never_reports(router: str) -> None:
-    mission = "tree-missing"
+@pytest.mark.parametrize("spelling", [("tree-agent",), ("agent", "--algo", "cocta")],
+                         ids=["tree-agent", "agent"])
+def test_agents_give_up_when_a_robot_never_reports(router: str,
+                                                   spelling: tuple[str, ...]) -> None:
+    mission = f"tree-missing-{spelling[0]}"
     tree = ["--tree", "perfect:N=2,H=2", "--robots", "3"]
     radio = start("radio", *tree, "--connect", router, "--mission", mission)
     agents: list[subprocess.Popen[str]] = []
     try:
         wait_line(radio, "radio ready")
-        agents = [start("tree-agent", "--id", str(robot), *tree, "--step-timeout", "3",
+        agents = [start(*spelling, "--id", str(robot), *tree, "--step-timeout", "3",
                         "--connect", router, "--mission", mission) for robot in (0, 1)]
         outputs = [agent.communicate(timeout=RUN_LIMIT)[0] for agent in agents]
     finally:

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_bus_codec import st_message
 
-from agent.tree_barrier import StepVerdict, judge_step, reachable_nodes
+from agent.tree.barrier import StepVerdict, judge_step, reachable_nodes
 from bus import codec, keys
 from bus.codec import decode, decode_any, encode
 from bus.errors import DecodeError

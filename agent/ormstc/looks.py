@@ -1,6 +1,6 @@
 """Sensing steps made visible, and sensing that spares them.
 
-:class:`MarkedSteps` is the body as agent.ormstc_body.look sees it: a look moves the robot
+:class:`MarkedSteps` is the body as agent.ormstc.body.look sees it: a look moves the robot
 only to step to the sub-cell beside it and back (a thin sonar sees one half of a
 neighbouring cell), so every forward step made through it is a sensing step; the driver
 publishes each one (bus.messages.LookStep), and a report can tell these entries from
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from agent.ormstc_body import Hardware
-from agent.ormstc_sensing import BodyTest, SonarMap, direction_of, shows_news
+from agent.ormstc.body import Hardware
+from agent.ormstc.sensing import BodyTest, SonarMap, direction_of, shows_news
 from bus.messages import Sensor
 from planner.ormstc.types import SubCell
 
@@ -27,7 +27,7 @@ StepSink = Callable[[int, SubCell], None]  # (the step's number from 1, the sub-
 
 
 class MarkedSteps:
-    """A body's face / forward / sonar for :func:`agent.ormstc_body.look`; each forward
+    """A body's face / forward / sonar for :func:`agent.ormstc.body.look`; each forward
     step that moved the body is numbered and handed to ``on_step``."""
 
     def __init__(self, body: Hardware, on_step: StepSink) -> None:
@@ -60,7 +60,7 @@ class MarkedSteps:
 
 async def glance(body: Hardware, sonar: SonarMap, may_hold_body: BodyTest) -> int:
     """Read the sonars that may show something new from where the body stands, remember
-    the rays (as :func:`agent.ormstc_body.look` does) and return how many were read."""
+    the rays (as :func:`agent.ormstc.body.look` does) and return how many were read."""
     if body.pose is None:
         return 0
     pos, heading = (body.pose[0], body.pose[1]), body.pose[2]

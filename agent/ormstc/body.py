@@ -1,13 +1,13 @@
 """simhw's hardware API as the ORMSTC driver uses it: one body, one command at a time.
 
 Each command is a query on ``hw/<r>/cmd`` answered when the motion is over in sim time, sent
-through agent.hw_link with the retry policy every agent shares (lost replies, a router
+through agent.core.hw_link with the retry policy every agent shares (lost replies, a router
 restart: re-asked until the link's deadline, a motion re-sent only if the pose shows it was
-not done). Unlike agent.hardware (the offline agent's client) a bump is returned, not
+not done). Unlike agent.offline.hardware (the offline agent's client) a bump is returned, not
 retried: the ORMSTC machine backs off and retries itself. Sense commands name their sonars;
 when simhw runs in one-at-a-time mode (it rejects several), every later sense names one.
 
-:func:`look` carries out the machine's ``Sense`` with that body and agent.ormstc_sensing's
+:func:`look` carries out the machine's ``Sense`` with that body and agent.ormstc.sensing's
 geometry: a thin ray sees one half of a neighbouring cell, so when the other half was never
 seen free the robot steps to the sub-cell beside it (its own cell), reads the same direction
 with a side sonar and steps back (docs/ormstc.md, "Sensing with a thin sonar").
@@ -17,9 +17,9 @@ from __future__ import annotations
 
 from typing import Protocol, cast
 
-from agent.errors import HardwareError
-from agent.hw_link import HwLink, facing, standing_on
-from agent.ormstc_sensing import (
+from agent.core.errors import HardwareError
+from agent.core.hw_link import HwLink, facing, standing_on, turns
+from agent.ormstc.sensing import (
     HEADING_DELTA,
     BodyTest,
     SonarMap,
@@ -34,9 +34,6 @@ from agent.ormstc_sensing import (
 from bus.bridge import Bus
 from bus.messages import HwAction, HwReply, Sensor
 from planner.ormstc.types import Cell, CellStatus, Sense, SenseMode, SenseResult, SubCell
-
-_TURNS: dict[int, tuple[HwAction, ...]] = {
-    0: (), 1: ("turn_right",), 2: ("turn_right", "turn_right"), 3: ("turn_left",)}
 
 
 class Body:
@@ -85,7 +82,7 @@ class Body:
     async def face(self, heading: int) -> None:
         assert self.pose is not None
         action: HwAction
-        for action in _TURNS[(heading - self.pose[2]) % 4]:
+        for action in turns(self.pose[2], heading):
             await self.must(action)
 
     async def sonar(self, sensors: tuple[Sensor, ...]) -> dict[str, int | None]:

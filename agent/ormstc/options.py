@@ -1,5 +1,5 @@
-"""Options of ``mstc agent --algo ormstc`` and the configuration they make (no Zenoh here, so
-option mistakes are reported before the bus is loaded).
+"""Options of ``mstc agent --algo ormstc`` and the machine configuration they make (no Zenoh
+here, so option mistakes are reported before the bus is loaded).
 
 Time options are wall-clock seconds: the machine is ticked with the agent's monotonic clock,
 because the one bound that matters for safety — a claim must wait longer than two one-way
@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass
 
+from agent.core.config import AgentConfig
 from bus.argtypes import seconds
 from planner.ormstc.types import MachineConfig, Priority, SenseMode
 
@@ -25,35 +26,25 @@ DEFAULT_BUMP_BACKOFF = 0.05
 
 
 @dataclass(frozen=True)
-class OrmstcConfig:
-    """One ORMSTC agent: identity, the machine's parameters, and the process's patience."""
+class OrmstcOptions:
+    """The machine's parameters (identity, seed and the process's patience: AgentConfig)."""
 
-    robot: int
-    k: int
-    incarnation: int = 1
     claim_wait: float = DEFAULT_CLAIM_WAIT
     sense_mode: SenseMode = SenseMode.ALL
     priority: Priority = Priority.ID
     watch_interval: float = DEFAULT_WATCH_INTERVAL
     bump_backoff: float = DEFAULT_BUMP_BACKOFF
     announce_connections: bool = False
-    seed: int = 0
-    start_timeout: float = 30.0
-    heartbeat_period: float = 0.2
-    dead_after: float = 3.0
-    announce_period: float = 0.5
-    hw_timeout: float = 60.0
-    linger: float = 1.0
 
-    def machine(self, start: tuple[int, int]) -> MachineConfig:
+    def machine(self, config: AgentConfig, start: tuple[int, int]) -> MachineConfig:
         return MachineConfig(
-            robot=self.robot, team=self.k, start=(float(start[0]), float(start[1])),
+            robot=config.robot, team=config.k, start=(float(start[0]), float(start[1])),
             claim_wait=self.claim_wait, sense_mode=self.sense_mode, priority=self.priority,
             watch_interval=self.watch_interval, bump_backoff=self.bump_backoff,
-            announce_connections=self.announce_connections, seed=self.seed)
+            announce_connections=self.announce_connections, seed=config.seed)
 
 
-def add_ormstc_arguments(parser: argparse.ArgumentParser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options only ``--algo ormstc`` reads (it reads no map: only simhw has one)."""
     group = parser.add_argument_group("ORMSTC (--algo ormstc)")
     group.add_argument("--claim-wait", type=seconds, default=DEFAULT_CLAIM_WAIT,
@@ -79,12 +70,8 @@ def add_ormstc_arguments(parser: argparse.ArgumentParser) -> None:
                        help="publish connection edges too (for monitors)")
 
 
-def ormstc_config_from_args(args: argparse.Namespace) -> OrmstcConfig:
-    return OrmstcConfig(
-        robot=args.id, k=args.robots, incarnation=args.incarnation,
+def from_args(args: argparse.Namespace) -> OrmstcOptions:
+    return OrmstcOptions(
         claim_wait=args.claim_wait, sense_mode=SenseMode(args.sense_mode),
         priority=Priority(args.priority), watch_interval=args.watch_interval,
-        bump_backoff=args.bump_backoff, announce_connections=args.announce_connections,
-        seed=args.seed, start_timeout=args.start_timeout,
-        heartbeat_period=args.heartbeat_period, dead_after=args.dead_after,
-        announce_period=args.announce_period, hw_timeout=args.hw_timeout, linger=args.linger)
+        bump_backoff=args.bump_backoff, announce_connections=args.announce_connections)

@@ -1,4 +1,5 @@
-"""The agent process: one robot's life from start-up to leaving, in one asyncio TaskGroup.
+"""The offline agent (``mstc agent --algo nb|bt|opt``): one robot's life from start-up to
+leaving, in one asyncio TaskGroup.
 
 Life cycle: read the start pose from the body, announce it (RobotStatus), gather every
 robot's start, compute the plan, announce its digest and compare the others', drive the plan
@@ -6,42 +7,41 @@ robot's start, compute the plan, announce its digest and compare the others', dr
 service (token, heartbeats, failure detector), the announcer (re-publishes status, known
 deaths and the mission verdict; answers state queries) and three watchers that end the group
 with a specific exception: own death notice (FencedError), SIGTERM/SIGINT (LeaveRequested),
-a peer's "failed" verdict (MissionFailedError). That process frame is agent.lifecycle's,
-shared with the ORMSTC agent; this module adds the offline mission and the third watcher.
+a peer's "failed" verdict (MissionFailedError). The process frame is agent.core.lifecycle's
+and the gather agent.core.gather's, shared with the other families; this module adds the
+offline mission and the third watcher.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
-import time
-from collections.abc import Callable, Coroutine
+from collections.abc import Coroutine
 from typing import Any
 
-from agent.errors import (
-    AgentError,
-    DigestMismatchError,
-    GatherTimeoutError,
-    MissionFailedError,
-)
-from agent.hardware import Hardware
-from agent.lifecycle import AgentLife
-from agent.peers import PeerTable
-from agent.plan import compute_plan, plan_digest
-from agent.runner import OfflineRunner
-from agent.types import AgentConfig, AgentState, pack_covered
+from agent.core.config import AgentConfig
+from agent.core.errors import AgentError, DigestMismatchError, MissionFailedError
+from agent.core.gather import BodyAgent
+from agent.core.hw_link import HwLink
+from agent.core.lifecycle import run_agent
+from agent.offline.hardware import Hardware
+from agent.offline.options import OfflineOptions
+from agent.offline.peers import PeerTable
+from agent.offline.plan import compute_plan, plan_digest
+from agent.offline.runner import OfflineRunner
 from bus import keys
-from bus.announce import Announcer
 from bus.bridge import BoundedFifo, Bus, LatestWins, Received
-from bus.liveness import HeartbeatInfo, LivelinessService
+from bus.config import ConnectionSettings
+from bus.liveness import HeartbeatInfo
 from bus.messages import (
+    AgentState,
     DeathNotice,
-    EventKind,
     MissionState,
     MissionStatus,
     Progress,
     RobotEvent,
     RobotStatus,
+    pack_covered,
 )
 from planner.errors import PlannerError
 from planner.maps import resolve_world
@@ -49,62 +49,37 @@ from planner.offline.machine import OfflineRobot
 from planner.types import Plan
 
 _log = logging.getLogger("mstc.agent")
-_T0 = time.monotonic()
 STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress)
 
 
-class _StateAnnouncer(Announcer):
-    """The bus Announcer plus the agent's knowledge (AgentState) in every state reply."""
-
-    def __init__(self, agent: Agent, bus: Bus, key: str, period: float) -> None:
-        super().__init__(bus, key, period=period)
-        self._agent = agent
-
-    def messages(self) -> list[Any]:
-        return [*super().messages(), self._agent.state_message()]
-
-
-class Agent(AgentLife):
+class OfflineAgent(BodyAgent):
     """One robot. ``await agent.run(settings)`` returns the process exit code."""
 
-    END_PRIORITY = (*AgentLife.END_PRIORITY, PlannerError)
+    END_PRIORITY = (*BodyAgent.END_PRIORITY, PlannerError)
 
-    def __init__(self, config: AgentConfig) -> None:
-        self.config = config
-        self.robot = config.robot
-        self.incarnation = config.incarnation
-        self.grid = resolve_world(config.world, config.cell_size)
-        self.stop = asyncio.Event()
+    def __init__(self, config: AgentConfig, options: OfflineOptions) -> None:
+        super().__init__(config)
+        self.options = options
+        self.grid = resolve_world(options.world, options.cell_size)
         self.phase = "starting"
-        self.start: tuple[int, int] | None = None
         self.digest = ""
         self.plan: Plan | None = None
         self.runner: OfflineRunner | None = None
-        self.error = ""
 
     # --- plumbing -------------------------------------------------------------------------
 
     def _wire(self, bus: Bus) -> None:
-        self.bus = bus
         m = bus.mission
         self.peers = PeerTable(self.robot, self.config.k, bus.drops)
         self.hardware = Hardware(bus, self.robot, self.incarnation,
                                  timeout=self.config.hw_timeout)
-        self.liveness = LivelinessService(
-            bus, self.robot, self.incarnation, heartbeat_period=self.config.heartbeat_period,
-            timeout=self.config.dead_after, info=self._heartbeat_info,
-            on_death=self._on_death)
-        self.announcer = _StateAnnouncer(self, bus, keys.state(m, self.robot),
-                                         self.config.announce_period)
+        self.liveness = self._make_liveness(bus, self._on_death, self._heartbeat_info)
+        self.announcer = self._make_announcer(bus, self.state_message)
         bus.subscribe(keys.all_statuses(m), RobotStatus, self.peers.on_status,
                       BoundedFifo(4096))
         bus.subscribe(keys.all_progress(m), Progress, self._on_progress, BoundedFifo(65536))
         bus.subscribe(keys.mission_status(m), MissionStatus, self.peers.on_mission,
                       LatestWins())
-
-    def _say(self, text: str) -> None:
-        """One life-cycle line on stdout (launchers and tests wait for them)."""
-        print(f"agent {self.robot}: {text} [{time.monotonic() - _T0:.2f} s]", flush=True)
 
     def _heartbeat_info(self) -> HeartbeatInfo:
         return HeartbeatInfo(pose=self.hardware.state.pose, state=self._phase(),
@@ -133,7 +108,7 @@ class Agent(AgentLife):
             covered=pack_covered(machine.covered) if machine else b"",
             dead=tuple(sorted(self.peers.dead)),
             took_over=tuple(self.runner.took_over) if self.runner else (), drops=drops,
-            tree_kind=self.config.tree, seed=self.config.seed)
+            tree_kind=self.options.tree, seed=self.config.seed)
 
     def _status(self, state: str, message: str = "") -> None:
         if self.start is None:
@@ -144,10 +119,6 @@ class Agent(AgentLife):
                              self.digest, state, text)
         self.peers.on_status(keys.status(self.bus.mission, self.robot), status)
         self.announcer.set(keys.status(self.bus.mission, self.robot), status)
-
-    def _event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
-        self.bus.publish(keys.events(self.bus.mission, self.robot),
-                         RobotEvent(self.robot, self.incarnation, kind, subject, detail))
 
     def _mission_status(self, state: MissionState, message: str,
                         **summary: int | float | str) -> None:
@@ -176,31 +147,23 @@ class Agent(AgentLife):
 
     # --- the mission ----------------------------------------------------------------------
 
-    async def _gather(self) -> list[tuple[int, int]]:
-        pose = await self.hardware.wait_for_pose(self.config.start_timeout)
-        self.start = (int(pose[0]), int(pose[1]))
+    def _link(self) -> HwLink:
+        return self.hardware.link
+
+    def _missing_starts(self) -> list[int]:
+        return self.peers.missing_starts()
+
+    async def _wait_news(self) -> None:
+        await self.refresh()
+        await self.peers.wait_news(self.config.announce_period)
+
+    def _gathering(self) -> None:
         self.phase = "gathering"
-        self._say(f"body at {self.start}, gathering")
-        self._status("gathering")
-        await self._until(self.peers.missing_starts, "announce their start")
+
+    async def _gather(self) -> list[tuple[int, int]]:
+        await self._gather_starts()
         return [(self.peers.statuses[r].start[0], self.peers.statuses[r].start[1])
                 for r in range(self.config.k)]
-
-    async def _until(self, missing: Callable[[], list[int]], what: str,
-                     check: Callable[[], None] | None = None) -> None:
-        """Wait until ``missing()`` is empty (running ``check`` on every news);
-        GatherTimeoutError naming the robots still missing."""
-        try:
-            async with asyncio.timeout(self.config.start_timeout):
-                while missing():
-                    if check is not None:
-                        check()
-                    await self.refresh()
-                    await self.peers.wait_news(self.config.announce_period)
-        except TimeoutError:
-            raise GatherTimeoutError(
-                f"robots {missing()} did not {what} within {self.config.start_timeout:g} s "
-                f"(mission {self.bus.mission!r}, {self.config.k} robots expected)") from None
 
     def _check_digests(self) -> None:
         others = {r: s.plan_digest for r, s in self.peers.statuses.items()
@@ -216,7 +179,7 @@ class Agent(AgentLife):
         starts = await self._gather()
         self.phase = "planning"
         try:
-            self.plan = compute_plan(self.grid, starts, self.config.algo, self.config.tree,
+            self.plan = compute_plan(self.grid, starts, self.config.algo, self.options.tree,
                                      self.config.seed)
         except PlannerError as error:
             self._mission_status("failed", f"robot {self.robot} cannot plan: {error}")
@@ -263,3 +226,8 @@ class Agent(AgentLife):
         if isinstance(error, MissionFailedError) and (
                 self.peers.mission is None or self.peers.mission.state != "failed"):
             self._mission_status("failed", str(error))
+
+
+def drive(config: AgentConfig, options: OfflineOptions, settings: ConnectionSettings) -> int:
+    """Run one offline robot to its end; the process exit code (agent/main.py)."""
+    return run_agent(OfflineAgent(config, options), settings)

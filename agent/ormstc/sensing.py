@@ -7,7 +7,7 @@ robot's own sub-cells lie ahead. Whatever a ray shows is remembered in a :class:
 the other half of the cell is judged from that memory, and when a sub-cell of it was never
 seen free the cell is *unknown* (``judge`` gives None), never FREE: an obstacle that fills
 only part of a cell may lie there. The other half is seen by the same ray from the sub-cell
-beside the robot in its own cell (``beside``), which agent.ormstc_body steps to.
+beside the robot in its own cell (``beside``), which agent.ormstc.body steps to.
 
 A blocked sub-cell is a robot body or a static obstacle; the ray cannot tell which. Bodies
 only stand in cells their robot owns or is claiming, and ownership is announced before a body
@@ -76,11 +76,11 @@ class SonarMap:
     max_range: int = 8
     free: set[SubCell] = field(default_factory=set)
     static: set[SubCell] = field(default_factory=set)  # obstacles for certain
-    # what looking cost (agent.ormstc_body.look counts): sonar readings, looks from the
+    # what looking cost (agent.ormstc.body.look counts): sonar readings, looks from the
     # sub-cell beside, the forward steps they made (two each unless a body was in the way)
     # and the quarter turns made only to look
     readings: int = 0
-    glance_readings: int = 0  # of the readings, those taken after a move (agent.ormstc_looks)
+    glance_readings: int = 0  # of the readings, those taken after a move (agent.ormstc.looks)
     beside_looks: int = 0
     steps: int = 0
     turns: int = 0

@@ -1,58 +1,54 @@
 """``mstc agent --algo ormstc``: drive one robot's OrmstcMachine with simhw's body and the bus.
 
 The machine (planner.ormstc) decides everything; this module carries its requests out, as
-simhw/lockstep.py does in-process:
+planner/ormstc/lockstep.py does in-process:
 
-- ``Sense`` -> sonar commands (agent.ormstc_body.look: which sonar, turning first when the
+- ``Sense`` -> sonar commands (agent.ormstc.body.look: which sonar, turning first when the
   cell is behind, a look from the sub-cell beside for a half never seen; ``--sense-mode
   single`` or a simhw in one-at-a-time mode: one sonar per command; each step aside or back
   is published as a LookStep), ``Move`` -> turns and
   one forward step (a bump is ``MoveResult(ok=False)``),
   ``IsAlive`` -> the failure detector's verdict, ``Broadcast`` -> a bus message
-  (agent.ormstc_wire), ``Done`` -> status "done" and a "completed" event.
+  (agent.ormstc.wire), ``Done`` -> status "done" and a "completed" event.
 - Peer messages and the liveness service's deaths become ``PeerMessage`` / ``PeerDied``;
-  the machine is ticked with the monotonic clock in seconds (agent.ormstc_config says why).
+  the machine is ticked with the monotonic clock in seconds (agent.ormstc.options says why).
 
-Life cycle: read the pose, announce a status ("gathering") once subscribed, wait until every
-robot has announced one (so nobody's StartMsg is published before a peer listens), run the
-machine; once it reports Done and every other robot is done or dead, linger and leave.
+Life cycle: the core's gather (agent.core.gather: read the pose, announce a status
+"gathering" once subscribed, wait until every robot has announced one, so nobody's StartMsg
+is published before a peer listens), run the machine; once it reports Done and every other
+robot is done or dead, linger and leave.
 """
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import contextlib
-import sys
-import time
-from collections.abc import Callable
-from typing import Any
 
-from agent.errors import GatherTimeoutError, HardwareError
-from agent.lifecycle import AgentLife, run_agent
-from agent.ormstc_body import Body, look
-from agent.ormstc_config import OrmstcConfig, ormstc_config_from_args
-from agent.ormstc_looks import MarkedSteps, glance
-from agent.ormstc_sensing import (
+from agent.core.config import AgentConfig
+from agent.core.errors import HardwareError
+from agent.core.gather import BodyAgent
+from agent.core.hw_link import HwLink
+from agent.core.lifecycle import run_agent
+from agent.ormstc.body import Body, look
+from agent.ormstc.looks import MarkedSteps, glance
+from agent.ormstc.options import OrmstcOptions
+from agent.ormstc.sensing import (
     HEADING_DELTA,
     SonarMap,
     cell_of,
 )
-from agent.ormstc_wire import WIRE_TYPES, Inbound, Rejoin, TreeBook, key_for, to_wire
+from agent.ormstc.wire import WIRE_TYPES, Inbound, Rejoin, TreeBook, key_for, to_wire
 from bus import keys
-from bus.announce import Announcer
 from bus.bridge import BoundedFifo, Bus, LatestWins
 from bus.codec import encode
-from bus.config import settings_from_args
-from bus.liveness import HeartbeatInfo, LivelinessService
+from bus.config import ConnectionSettings
+from bus.liveness import HeartbeatInfo
 from bus.messages import (
     AgentState,
     DeathNotice,
-    EventKind,
     Heartbeat,
     LookStep,
     OrmstcWire,
-    RobotEvent,
     RobotStatus,
 )
 from planner.ormstc.conflicts import restate
@@ -76,30 +72,15 @@ from planner.ormstc.types import (
     Tick,
 )
 
-ALGO = "ormstc"
 STATIC_BUMPS = 3  # bumps into an obstacle (not a body) before the move is hopeless
 
 
-class _StateAnnouncer(Announcer):
-    """The bus Announcer plus the agent's AgentState in every state reply."""
-
-    def __init__(self, bus: Bus, key: str, period: float,
-                 state: Callable[[], AgentState]) -> None:
-        super().__init__(bus, key, period=period)
-        self._state_message = state
-
-    def messages(self) -> list[Any]:
-        return [*super().messages(), self._state_message()]
-
-
-class OrmstcAgent(AgentLife):
+class OrmstcAgent(BodyAgent):
     """One ORMSTC robot process. ``await agent.run(settings)`` returns the exit code."""
 
-    def __init__(self, config: OrmstcConfig) -> None:
-        self.config = config
-        self.robot = config.robot
-        self.incarnation = config.incarnation
-        self.stop = asyncio.Event()
+    def __init__(self, config: AgentConfig, options: OrmstcOptions) -> None:
+        super().__init__(config)
+        self.options = options
         self.news = asyncio.Event()
         self.machine: OrmstcMachine | None = None
         self.sonar = SonarMap()
@@ -107,36 +88,23 @@ class OrmstcAgent(AgentLife):
         self.statuses: dict[int, RobotStatus] = {}
         self.dead: set[int] = set()
         self.peer_cells: dict[int, Cell] = {}  # last heartbeat pose of each peer
-        self.start: SubCell | None = None
         self.state = "starting"
         self.sent = 0
         self.sent_bytes = 0
-        self.error = ""
         self._static_bumps = 0
-        self._t0 = time.monotonic()
         self.book = TreeBook()
         # a peer silent this long was cut off: restate (docs/ormstc.md, "Router restarts")
         self.rejoin = Rejoin(silence=max(1.0, 5 * config.heartbeat_period))
 
     # --- plumbing -------------------------------------------------------------------------
 
-    def now(self) -> float:
-        return time.monotonic() - self._t0
-
-    def _say(self, text: str) -> None:
-        print(f"agent {self.robot}: {text} [{self.now():.2f} s]", flush=True)
-
     def _wire(self, bus: Bus) -> None:
         c, m = self.config, bus.mission
-        self.bus = bus
         self.body = Body(bus, self.robot, c.incarnation, c.hw_timeout)
         self.looking = MarkedSteps(self.body, self._look_step)
         self.inbound = Inbound(self.robot, c.k, bus.drops)
-        self.liveness = LivelinessService(
-            bus, self.robot, c.incarnation, heartbeat_period=c.heartbeat_period,
-            timeout=c.dead_after, info=self._heartbeat_info, on_death=self._on_death)
-        self.announcer = _StateAnnouncer(bus, keys.state(m, self.robot), c.announce_period,
-                                         self.state_message)
+        self.liveness = self._make_liveness(bus, self._on_death, self._heartbeat_info)
+        self.announcer = self._make_announcer(bus, self.state_message)
         bus.subscribe(keys.all_ormstc(m), WIRE_TYPES, self._on_ormstc, BoundedFifo(65536))
         bus.subscribe(keys.all_statuses(m), RobotStatus, self._on_status, LatestWins())
         bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
@@ -195,11 +163,8 @@ class OrmstcAgent(AgentLife):
         self.state = state
         if self.start is not None:
             self.announcer.set(keys.status(self.bus.mission, self.robot), RobotStatus(
-                self.robot, self.config.incarnation, self.start, ALGO, "", state, message))
-
-    def _event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
-        self.bus.publish(keys.events(self.bus.mission, self.robot), RobotEvent(
-            self.robot, self.config.incarnation, kind, subject, detail))
+                self.robot, self.config.incarnation, self.start, self.config.algo, "", state,
+                message))
 
     def _broadcast(self, request: Broadcast) -> None:
         self.book.sent(self._publish(request.message))
@@ -221,7 +186,7 @@ class OrmstcAgent(AgentLife):
         self._say(f"restated {len(said)} messages (peers were cut off)")
 
     def may_hold_body(self, cell: Cell) -> bool:
-        """A robot body can stand in ``cell`` (see agent.ormstc_sensing)."""
+        """A robot body can stand in ``cell`` (see agent.ormstc.sensing)."""
         know = self.machine.know if self.machine is not None else None
         return (know is not None and (cell in know.owners or cell in know.claims.pending)) \
             or cell in self.peer_cells.values()
@@ -229,7 +194,7 @@ class OrmstcAgent(AgentLife):
     # --- requests -------------------------------------------------------------------------
 
     async def sense(self, request: Sense) -> SenseResult:
-        return await look(self.looking, self.sonar, request, self.config.sense_mode,
+        return await look(self.looking, self.sonar, request, self.options.sense_mode,
                           self.may_hold_body)
 
     def _look_step(self, seq: int, cell: SubCell) -> None:
@@ -245,7 +210,7 @@ class OrmstcAgent(AgentLife):
         reply = await self.body.step()
         if reply.status == "ok":
             self._static_bumps = 0
-            # rays from every sub-cell walked spare looks from beside (agent.ormstc_looks)
+            # rays from every sub-cell walked spare looks from beside (agent.ormstc.looks)
             await glance(self.body, self.sonar, self.may_hold_body)
             return True
         if reply.status != "bumped":
@@ -265,24 +230,16 @@ class OrmstcAgent(AgentLife):
 
     # --- the mission ----------------------------------------------------------------------
 
-    async def _gather(self) -> None:
-        pose = await self.body.wait_for_pose(self.config.start_timeout)
-        self.start = (pose[0], pose[1])
-        self._status("gathering")
-        self._say(f"body at {self.start}, gathering")
-        missing = self._not_announced
-        try:
-            async with asyncio.timeout(self.config.start_timeout):
-                while missing():
-                    self.news.clear()
-                    with contextlib.suppress(TimeoutError):
-                        async with asyncio.timeout(self.config.announce_period):
-                            await self.news.wait()
-        except TimeoutError:
-            raise GatherTimeoutError(f"robots {missing()} did not announce themselves within "
-                                     f"{self.config.start_timeout:g} s") from None
+    def _link(self) -> HwLink:
+        return self.body.link
 
-    def _not_announced(self) -> list[int]:
+    async def _wait_news(self) -> None:
+        self.news.clear()
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(self.config.announce_period):
+                await self.news.wait()
+
+    def _missing_starts(self) -> list[int]:
         return [r for r in range(self.config.k)
                 if r != self.robot and r not in self.statuses and r not in self.dead]
 
@@ -351,9 +308,8 @@ class OrmstcAgent(AgentLife):
             self._say("completion withdrawn")
 
     async def _mission(self) -> None:
-        await self._gather()
-        assert self.start is not None
-        self.machine = OrmstcMachine(self.config.machine(self.start))
+        start = await self._gather_starts()
+        self.machine = OrmstcMachine(self.options.machine(self.config, start))
         self._status("covering")
         self._event("started")
         self._say("driving")
@@ -364,11 +320,6 @@ class OrmstcAgent(AgentLife):
                   f"{self.inbound.repeats} repeats heard")
 
 
-def run_ormstc(args: argparse.Namespace) -> int:
-    """``mstc agent --algo ormstc``: exit codes as for the other algorithms (agent/main.py)."""
-    config = ormstc_config_from_args(args)
-    if config.robot >= config.k:
-        print(f"mstc agent: error: --id {config.robot} is not below --robots {config.k}",
-              file=sys.stderr)
-        return 2
-    return run_agent(OrmstcAgent(config), settings_from_args(args))
+def drive(config: AgentConfig, options: OrmstcOptions, settings: ConnectionSettings) -> int:
+    """Run one ORMSTC robot to its end; the process exit code (agent/main.py)."""
+    return run_agent(OrmstcAgent(config, options), settings)

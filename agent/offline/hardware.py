@@ -7,7 +7,7 @@ before it counts as a hardware failure. A command refused because this robot's i
 is stale means the robot was declared dead: FencedError.
 
 Replies can be lost (a router restart drops queries in flight): the retry policy, shared
-with the ORMSTC agent, is agent.hw_link's (a motion is re-sent only if the pose shows it
+with the ORMSTC agent, is agent.core.hw_link's (a motion is re-sent only if the pose shows it
 was not done).
 """
 
@@ -17,18 +17,21 @@ import asyncio
 import time
 from dataclasses import dataclass
 
-from agent.errors import HardwareError
-from agent.hw_link import DEFAULT_TIMEOUT_S, HwLink, NoReplyError, facing, standing_on
+from agent.core.errors import HardwareError
+from agent.core.hw_link import (
+    DEFAULT_TIMEOUT_S,
+    HwLink,
+    NoReplyError,
+    facing,
+    standing_on,
+    turns,
+)
 from bus.bridge import Bus
 from bus.messages import HwAction, HwReply, Pose
-from planner.types import SubCell
+from planner.geometry import Heading, SubCell
 
 __all__ = ["BodyState", "Hardware", "NoReplyError"]
 
-# Heading of each unit step (d_row, d_col): 0 = N, 1 = E, 2 = S, 3 = W (bus.messages).
-_HEADING_OF = {(-1, 0): 0, (0, 1): 1, (1, 0): 2, (0, -1): 3}
-_TURNS: dict[int, tuple[HwAction, ...]] = {
-    0: (), 1: ("turn_right",), 2: ("turn_right", "turn_right"), 3: ("turn_left",)}
 BUMP_RETRY_S = 0.05
 BUMP_PATIENCE_S = 5.0
 
@@ -77,10 +80,12 @@ class Hardware:
         pose = self.state.pose
         if pose is None:
             raise HardwareError(f"robot {self.robot}: pose unknown; read it first")
-        heading = _HEADING_OF.get((target[0] - pose[0], target[1] - pose[1]))
-        if heading is None:
-            raise HardwareError(f"robot {self.robot}: {target} is not next to {pose[:2]}")
-        for action in _TURNS[(heading - pose[2]) % 4]:
+        try:
+            heading = Heading.from_delta((target[0] - pose[0], target[1] - pose[1]))
+        except KeyError:
+            raise HardwareError(f"robot {self.robot}: {target} is not next to "
+                                f"{pose[:2]}") from None
+        for action in turns(pose[2], heading):
             want = (self._heading() + (1 if action == "turn_right" else -1)) % 4
             self._check(await self.link.motion(action, facing(want)), action)
         await self._forward(target)

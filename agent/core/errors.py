@@ -39,3 +39,8 @@ class FencedError(AgentError):
 
 class LeaveRequested(Exception):
     """SIGTERM/SIGINT: leave the mission cleanly (exit code 0)."""
+
+
+class ConfigError(Exception):
+    """A command-line mistake found after parsing (an option the algorithm needs is missing,
+    an id outside the fleet): printed as one line, exit code 2, before the bus is loaded."""

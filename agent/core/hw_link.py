@@ -20,14 +20,19 @@ import asyncio
 import time
 from collections.abc import Callable
 
-from agent.errors import FencedError, HardwareError
+from agent.core.config import DEFAULT_HW_TIMEOUT
+from agent.core.errors import FencedError, HardwareError
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import HwAction, HwCommand, HwReply, Pose, Sensor
 
 POLL_S = 0.2  # pause between attempts while simhw (or the router) does not answer
 ATTEMPT_S = 5.0  # longest wait for one reply (a motion lasts ~2 sim seconds)
-DEFAULT_TIMEOUT_S = 60.0
+DEFAULT_TIMEOUT_S = DEFAULT_HW_TIMEOUT
+# Quarter turns right (mod 4) -> the turns that make them the short way round; headings as
+# in planner.geometry (clockwise, a right turn is +1).
+_TURNS: dict[int, tuple[HwAction, ...]] = {
+    0: (), 1: ("turn_right",), 2: ("turn_right", "turn_right"), 3: ("turn_left",)}
 
 
 class NoReplyError(HardwareError):
@@ -142,6 +147,11 @@ class HwLink:
         if time.monotonic() >= deadline:
             raise HardwareError(f"robot {self.robot}: no answer from simhw to '{action}' "
                                 f"within {self.timeout:g} s ({attempts} attempts)")
+
+
+def turns(heading: int, towards: int) -> tuple[HwAction, ...]:
+    """The turns from ``heading`` to ``towards``, the short way round."""
+    return _TURNS[(towards - heading) % 4]
 
 
 def facing(heading: int) -> Callable[[Pose], bool]:

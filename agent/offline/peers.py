@@ -12,10 +12,16 @@ from __future__ import annotations
 import asyncio
 from dataclasses import dataclass, field
 
-from agent.types import AgentState, unpack_covered
 from bus import keys
 from bus.drops import DropCounter
-from bus.messages import DeathNotice, MissionStatus, Progress, RobotStatus
+from bus.messages import (
+    AgentState,
+    DeathNotice,
+    MissionStatus,
+    Progress,
+    RobotStatus,
+    unpack_covered,
+)
 from planner.offline.machine import OfflineRobot
 from planner.types import SubCell
 

@@ -6,8 +6,9 @@ that end the group with a specific exception: own death notice (FencedError) and
 SIGTERM/SIGINT (LeaveRequested), plus whatever a subclass adds. How the group ends decides
 what the others are told (status, event) and the exit code.
 
-A subclass wires itself to the bus in ``_wire`` (setting ``liveness`` and ``announcer``),
-runs its mission in ``_mission`` and says how it reports in ``_status`` and ``_event``.
+A subclass wires itself to the bus in ``_wire`` (setting ``liveness`` and ``announcer``,
+made by ``_make_liveness`` and ``_make_announcer`` from the one AgentConfig), runs its
+mission in ``_mission`` and says how it reports its status in ``_status``.
 """
 
 from __future__ import annotations
@@ -18,16 +19,18 @@ import logging
 import signal
 import sys
 from abc import ABC, abstractmethod
-from collections.abc import Coroutine
+from collections.abc import Callable, Coroutine
 from typing import Any, ClassVar
 
-from agent.errors import AgentError, FencedError, LeaveRequested
-from bus.announce import Announcer
+from agent.core.announcer import StateAnnouncer
+from agent.core.config import AgentConfig
+from agent.core.errors import AgentError, FencedError, LeaveRequested
+from bus import keys
 from bus.bridge import Bus
 from bus.config import ConnectionSettings
 from bus.errors import BusError
-from bus.liveness import LivelinessService
-from bus.messages import EventKind
+from bus.liveness import HeartbeatInfo, LivelinessService
+from bus.messages import AgentState, DeathNotice, EventKind, RobotEvent
 
 # Time for the last status and event to leave before the session closes.
 LEAVE_FLUSH_S = 0.1
@@ -40,12 +43,32 @@ class AgentLife(ABC):
     END_PRIORITY: ClassVar[tuple[type[BaseException], ...]] = (
         FencedError, LeaveRequested, AgentError)
 
-    robot: int
-    incarnation: int
-    stop: asyncio.Event
-    error: str
+    bus: Bus
     liveness: LivelinessService
-    announcer: Announcer
+    announcer: StateAnnouncer
+
+    def __init__(self, config: AgentConfig) -> None:
+        self.config = config
+        self.robot = config.robot
+        self.incarnation = config.incarnation
+        self.stop = asyncio.Event()
+        self.error = ""
+
+    def _make_liveness(self, bus: Bus, on_death: Callable[[DeathNotice], None],
+                       info: Callable[[], HeartbeatInfo] = HeartbeatInfo) -> LivelinessService:
+        c = self.config
+        return LivelinessService(bus, self.robot, self.incarnation,
+                                 heartbeat_period=c.heartbeat_period, timeout=c.dead_after,
+                                 info=info, on_death=on_death)
+
+    def _make_announcer(self, bus: Bus,
+                        state: Callable[[], AgentState] | None = None) -> StateAnnouncer:
+        return StateAnnouncer(bus, keys.state(bus.mission, self.robot),
+                              self.config.announce_period, state)
+
+    def _event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
+        self.bus.publish(keys.events(self.bus.mission, self.robot),
+                         RobotEvent(self.robot, self.incarnation, kind, subject, detail))
 
     @abstractmethod
     def _wire(self, bus: Bus) -> None: ...
@@ -55,9 +78,6 @@ class AgentLife(ABC):
 
     @abstractmethod
     def _status(self, state: str, message: str = "") -> None: ...
-
-    @abstractmethod
-    def _event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None: ...
 
     def _watchers(self) -> list[Coroutine[Any, Any, None]]:
         """Background tasks that end the group by raising (subclasses may add)."""
@@ -91,6 +111,7 @@ class AgentLife(ABC):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.add_signal_handler(sig, self.stop.set)
         async with Bus.connect(settings) as bus:
+            self.bus = bus
             self._wire(bus)
             try:
                 await self._run_group()

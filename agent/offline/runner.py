@@ -11,8 +11,8 @@ from __future__ import annotations
 import time
 from collections.abc import Awaitable, Callable
 
-from agent.hardware import Hardware
-from agent.peers import PeerTable
+from agent.offline.hardware import Hardware
+from agent.offline.peers import PeerTable
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import EventKind, Progress, RobotEvent

@@ -11,7 +11,7 @@ walks its own. The step after the team is done (all nodes visited, all robots on
 reports once more, so everybody confirms the end, and leaves.
 
 A robot that dies is removed by every survivor at the same step boundary, the first step whose
-report from it never comes (agent.tree_barrier decides when that is known; the argument is in
+report from it never comes (agent.tree.barrier decides when that is known; the argument is in
 docs/treecover.md), and the replica repairs the trail. Deaths are learnt from the liveliness
 service (the infrastructure's view, not the radio's), from peers' ``stopped`` / ``fenced``
 events and from the ``dead`` set of the reports. A report whose ``gone`` set differs from the
@@ -22,58 +22,36 @@ replica's, a report that disagrees with the replica, a stall, or a step not comp
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import contextlib
-import sys
 import time
-from dataclasses import dataclass
 
-from agent.errors import MissionFailedError
-from agent.lifecycle import AgentLife, run_agent
-from agent.tree_barrier import judge_step
+from agent.core.config import AgentConfig
+from agent.core.errors import MissionFailedError
+from agent.core.lifecycle import AgentLife, run_agent
+from agent.tree.barrier import judge_step
+from agent.tree.options import TreeOptions
 from bus import keys
-from bus.announce import Announcer
-from bus.argtypes import index, positive, positive_int
 from bus.bridge import BoundedFifo, Bus
-from bus.config import add_connection_arguments, settings_from_args
-from bus.liveness import LivelinessService
-from bus.messages import DeathNotice, EventKind, RobotEvent, RobotStatus
+from bus.config import ConnectionSettings
+from bus.messages import DeathNotice, RobotEvent, RobotStatus
 from bus.tree_messages import TreeReport
 from planner.errors import PlannerError
 from planner.treecover.team import TeamReplica
 from planner.treecover.trees import tree_from_spec
 from planner.treecover.types import Algo
 
-DEFAULT_STEP_TIMEOUT = 10.0
-DEFAULT_SETTLE = 1.0  # the longest a dead robot's last report may still be on its way
 ASSEMBLY_POLL_S = 0.05
 INBOX_BACKLOG = 65536  # a step delivers at most k x k reports
-
-
-@dataclass(frozen=True)
-class TreeAgentConfig:
-    robot: int
-    robots: int
-    tree: str
-    algo: Algo
-    incarnation: int = 1
-    step_timeout: float = DEFAULT_STEP_TIMEOUT
-    settle: float = DEFAULT_SETTLE
-    heartbeat_period: float = 0.2
-    dead_after: float = 3.0
-    announce_period: float = 1.0
 
 
 class TreeAgent(AgentLife):
     """One robot: report, relay, gather, decide, move."""
 
-    def __init__(self, config: TreeAgentConfig, replica: TeamReplica) -> None:
-        self.config = config
-        self.robot = config.robot
-        self.incarnation = config.incarnation
-        self.stop = asyncio.Event()
-        self.error = ""
+    def __init__(self, config: AgentConfig, options: TreeOptions, replica: TeamReplica) -> None:
+        super().__init__(config)
+        self.options = options
+        self.algo = Algo(config.algo)
         self.replica = replica
         self.step = -1
         self.heard: dict[int, dict[int, int]] = {}  # step -> robot -> node
@@ -91,13 +69,8 @@ class TreeAgent(AgentLife):
     # --- bus -------------------------------------------------------------------------------
 
     def _wire(self, bus: Bus) -> None:
-        self.bus = bus
-        c = self.config
-        self.liveness = LivelinessService(bus, self.robot, self.incarnation,
-                                          heartbeat_period=c.heartbeat_period,
-                                          timeout=c.dead_after, on_death=self._on_death)
-        self.announcer = Announcer(bus, keys.state(bus.mission, self.robot),
-                                   period=c.announce_period)
+        self.liveness = self._make_liveness(bus, self._on_death)
+        self.announcer = self._make_announcer(bus)
         bus.subscribe(keys.tree_inbox(bus.mission, self.robot), TreeReport, self._on_report,
                       BoundedFifo(INBOX_BACKLOG))
         bus.subscribe(keys.all_events(bus.mission), RobotEvent, self._on_event,
@@ -106,13 +79,9 @@ class TreeAgent(AgentLife):
     def _status(self, state: str, message: str = "") -> None:
         # start (0, 0): every tree robot starts on the root; the digest names the splits,
         # which every robot computes for itself and which must agree
-        status = RobotStatus(self.robot, self.incarnation, (0, 0), self.config.algo.value,
+        status = RobotStatus(self.robot, self.incarnation, (0, 0), self.algo.value,
                              f"splits {self.splits_text}", state, message)
         self.announcer.set(keys.status(self.bus.mission, self.robot), status)
-
-    def _event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
-        self.bus.publish(keys.events(self.bus.mission, self.robot),
-                         RobotEvent(self.robot, self.incarnation, kind, subject, detail))
 
     def _on_death(self, notice: DeathNotice) -> None:
         # a robot that leaves once it holds every report of the last step is no failure (its
@@ -141,10 +110,10 @@ class TreeAgent(AgentLife):
                                   self.robot, report.gone, report.dead))
 
     def _on_report(self, _key: str, report: TreeReport) -> None:
-        if report.robot == self.robot or not 0 <= report.robot < self.config.robots:
+        if report.robot == self.robot or not 0 <= report.robot < self.config.k:
             return
         for robot in report.dead:
-            if 0 <= robot < self.config.robots:
+            if 0 <= robot < self.config.k:
                 self._lose(robot, f"dead according to robot {report.robot}")
         if report.step < self.step or report.robot in self.heard.get(report.step, {}):
             self.duplicates += 1
@@ -180,7 +149,7 @@ class TreeAgent(AgentLife):
         """The reports of ``step`` we can hear and the dead robots absent from it, once every
         live robot in hearing has reported and every death has settled."""
         known = self.heard[step]
-        c, r = self.config, self.replica
+        c, r = self.options, self.replica
         waiting: tuple[int, ...] = ()
         try:
             async with asyncio.timeout(c.step_timeout):
@@ -220,9 +189,9 @@ class TreeAgent(AgentLife):
         """Wait, at most a step timeout, until the liveliness service knows every peer. A
         robot killed right after its first report might otherwise die before anyone saw its
         token, and an unknown robot is never declared dead."""
-        peers = set(range(self.config.robots)) - {self.robot}
+        peers = set(range(self.config.k)) - {self.robot}
         with contextlib.suppress(TimeoutError):
-            async with asyncio.timeout(self.config.step_timeout):
+            async with asyncio.timeout(self.options.step_timeout):
                 while not peers <= self.liveness.detector.alive().keys() | self.lost.keys():
                     await asyncio.sleep(ASSEMBLY_POLL_S)
 
@@ -254,35 +223,7 @@ class TreeAgent(AgentLife):
         self._event("completed", detail=summary)
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--id", type=index, required=True, metavar="I",
-                        help="this robot's id, 0..K-1")
-    parser.add_argument("--robots", type=positive_int, required=True, metavar="K",
-                        help="team size")
-    parser.add_argument("--tree", required=True, metavar="SPEC",
-                        help="perfect:N=3,H=4 | general:... | office | FILE.tree (a-priori map)")
-    parser.add_argument("--algo", choices=[a.value for a in Algo], default="cocta")
-    parser.add_argument("--incarnation", type=positive_int, default=1, metavar="N")
-    parser.add_argument("--step-timeout", type=positive, default=DEFAULT_STEP_TIMEOUT,
-                        metavar="SECONDS",
-                        help="longest wait for every report of one step (default %(default)s)")
-    parser.add_argument("--settle", type=positive, default=DEFAULT_SETTLE, metavar="SECONDS",
-                        help="how long a dead robot's last report may still be on its way "
-                             "(default %(default)s)")
-    parser.add_argument("--heartbeat-period", type=positive, default=0.2, metavar="SECONDS")
-    parser.add_argument("--dead-after", type=positive, default=3.0, metavar="SECONDS",
-                        help="a robot silent this long is declared dead (default %(default)s)")
-    add_connection_arguments(parser)
-
-
-def run(args: argparse.Namespace) -> int:
-    if args.id >= args.robots:
-        print(f"mstc tree-agent: error: --id {args.id} is not below --robots {args.robots}",
-              file=sys.stderr)
-        return 2
-    config = TreeAgentConfig(robot=args.id, robots=args.robots, tree=args.tree,
-                             algo=Algo(args.algo), incarnation=args.incarnation,
-                             step_timeout=args.step_timeout, settle=args.settle,
-                             heartbeat_period=args.heartbeat_period, dead_after=args.dead_after)
-    replica = TeamReplica(tree_from_spec(args.tree), args.robots, config.algo)
-    return run_agent(TreeAgent(config, replica), settings_from_args(args))
+def drive(config: AgentConfig, options: TreeOptions, settings: ConnectionSettings) -> int:
+    """Run one tree coverage robot to its end; the process exit code (agent/main.py)."""
+    replica = TeamReplica(tree_from_spec(options.tree), config.k, Algo(config.algo))
+    return run_agent(TreeAgent(config, options, replica), settings)

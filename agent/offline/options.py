@@ -1,0 +1,44 @@
+"""Options of the offline agents (``mstc agent --algo nb|bt|opt``): the a-priori map and the
+spanning tree every robot plans on (no Zenoh here)."""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+
+from agent.core.errors import ConfigError
+from bus.argtypes import positive_int
+from planner.algorithms import Family, names
+from planner.trees import ALL_TREE_KINDS
+
+DEFAULT_TREE = "dfs"
+
+
+@dataclass(frozen=True)
+class OfflineOptions:
+    """The inputs of the plan besides the starts (and the seed, AgentConfig's)."""
+
+    world: str
+    cell_size: int | None = None
+    tree: str = DEFAULT_TREE
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    algos = "|".join(names(Family.OFFLINE, fleet=True))
+    group = parser.add_argument_group(f"offline MSTC (--algo {algos})")
+    group.add_argument("--world", metavar="FILE|NAME",
+                       help="map file or builtin world name: the a-priori map of the offline "
+                            "algorithms (required for them)")
+    group.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
+                       help="map pixels per sub-cell side (default 1)")
+
+
+def from_args(args: argparse.Namespace) -> OfflineOptions:
+    """ConfigError when the map is missing or ``--tree`` names no spanning tree kind."""
+    if args.world is None:
+        raise ConfigError(f"--algo {args.algo} needs --world (the a-priori map)")
+    tree = DEFAULT_TREE if args.tree is None else args.tree
+    if tree not in ALL_TREE_KINDS:
+        raise ConfigError(f"argument --tree: invalid choice for --algo {args.algo}: {tree!r} "
+                          f"(choose from {', '.join(ALL_TREE_KINDS)})")
+    return OfflineOptions(world=args.world, cell_size=args.cell_size, tree=tree)

@@ -1,0 +1,1 @@
+"""The online family (ormstc): the ORMSTC machine driven with a sonar body, no map."""

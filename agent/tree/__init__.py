@@ -1,0 +1,1 @@
+"""The tree family (cocta, ncocta): connected coverage of a tree, one step barrier a step."""
