@@ -86,7 +86,7 @@ async def serve(args: argparse.Namespace, tree: Tree) -> None:
     for sig in (signal.SIGTERM, signal.SIGINT):
         with contextlib.suppress(NotImplementedError, RuntimeError):
             loop.add_signal_handler(sig, stop.set)
-    settings = settings_from_args(args)
+    settings = settings_from_args(args, default_role="simhw")
     async with Bus.connect(settings) as bus:
         relay = RadioRelay(bus, tree, args.robots)
         relay.bind()
