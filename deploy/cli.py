@@ -16,6 +16,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
+from deploy.errors import UsageError
 from planner.errors import PlannerError
 
 # name -> (module, one-line help)
@@ -40,10 +41,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "repro-ormstc": ("deploy.repro_ormstc", "reproduce paper 004 Fig. 4 (ORMSTC)"),
     "repro-cocta": ("deploy.repro_cocta", "reproduce paper 001 Fig. 4 (NCOCTA/COCTA)"),
 }
-
-
-class UsageError(Exception):
-    """A command-line mistake found after argument parsing (bad combination, bad value)."""
 
 
 def _available() -> dict[str, tuple[str, str]]:
@@ -120,6 +117,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    # `python -m deploy.cli` runs this file as __main__, a second copy of the module whose
-    # UsageError is not the one the commands raise: dispatch through the real module.
-    sys.exit(importlib.import_module("deploy.cli").main())
+    sys.exit(main())

@@ -1,9 +1,9 @@
 """``mstc down``: stop the fleet of a run directory (default: the most recent one).
 
-The launcher (``mstc up``) is asked first with SIGTERM, so it stops its children in order
-and prints its summary; whatever is still running after --timeout (for example because the
-launcher itself was SIGKILLed) gets SIGTERM, then SIGKILL. PID files carry each process's
-start time, so a pid reused by an unrelated process is never signalled."""
+The launcher (``mstc up`` or ``mstc tree-fleet``) is asked first with SIGTERM, so it stops
+its children in order and prints its summary; whatever is still running after --timeout (for
+example because the launcher itself was SIGKILLed) gets SIGTERM, then SIGKILL. PID files carry
+each process's start time, so a pid reused by an unrelated process is never signalled."""
 
 from __future__ import annotations
 
@@ -13,11 +13,11 @@ from pathlib import Path
 
 from deploy.fleet import (
     LAUNCHER,
+    SHUTDOWN_ORDER,
     ProcessRecord,
     RunDir,
     latest_run_dir,
     send_signal,
-    usage_errors_as_lines,
     wait_gone,
 )
 
@@ -40,10 +40,6 @@ def _stop(records: list[ProcessRecord], timeout: float) -> list[ProcessRecord]:
 
 
 def run(args: argparse.Namespace) -> int:
-    return usage_errors_as_lines("down", _run, args)
-
-
-def _run(args: argparse.Namespace) -> int:
     run_dir = RunDir(args.run_dir or latest_run_dir())
     info = run_dir.read_fleet()
     launcher = [p for p in info.processes if p.role == LAUNCHER]
@@ -53,10 +49,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"mstc down: fleet {info.mission} in {run_dir.path} is not running")
         return 0
     killed = _stop(launcher, args.timeout)
-    # Children outlive a launcher that was SIGKILLed: agents first, then simhw, the router.
-    order = {"agent": 0, "simhw": 1, "router": 2}
-    for rank in sorted(set(order.values())):
-        killed += _stop([p for p in others if order.get(p.role, 0) == rank], args.timeout)
+    # Children outlive a launcher that was SIGKILLed: stop them in the launcher's order.
+    for rank in sorted(set(SHUTDOWN_ORDER.values())):
+        killed += _stop([p for p in others if SHUTDOWN_ORDER.get(p.role, 0) == rank],
+                        args.timeout)
     note = f" ({len(killed)} needed SIGKILL: {[p.name for p in killed]})" if killed else ""
     print(f"mstc down: stopped fleet {info.mission} ({len(running)} processes){note}")
     return 0

@@ -9,13 +9,12 @@ import asyncio
 import signal
 from pathlib import Path
 
+from deploy.errors import FleetError
 from deploy.fleet import (
-    FleetError,
     FleetInfo,
     RunDir,
     latest_run_dir,
     send_signal,
-    usage_errors_as_lines,
 )
 
 
@@ -28,12 +27,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    return usage_errors_as_lines("kill", _run, args)
-
-
-def _run(args: argparse.Namespace) -> int:
     run_dir = RunDir(args.run_dir or latest_run_dir())
     info = run_dir.read_fleet()
+    if args.hw and info.kind == "tree":
+        raise FleetError(f"mission {info.mission} covers a tree: its robots have no simulated "
+                         f"bodies to fail (kill the agent without --hw)")
     if args.hw:
         message = asyncio.run(fail_body(info, args.robot))
         print(f"mstc kill: {message} (mission {info.mission})")

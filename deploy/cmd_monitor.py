@@ -12,12 +12,13 @@ import contextlib
 import os
 import signal
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from bus.argtypes import positive
-from bus.config import add_connection_arguments, settings_from_args
+from bus.config import ConnectionSettings, add_connection_arguments, settings_from_args
 from bus.errors import BusError
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,48 +42,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_connection_arguments(parser)
 
 
-def _follow_run_dir(args: argparse.Namespace) -> None:
-    """Point the monitor at a fleet started by `mstc up` (its mission name is unique per run).
-
-    An explicit --mission (or MSTC_MISSION) wins; without a run directory the defaults stay.
-    """
+def _follow_run_dir(args: argparse.Namespace,
+                    settings: ConnectionSettings) -> ConnectionSettings:
+    """Point the monitor at a fleet started by `mstc up` or `mstc tree-fleet` (its mission
+    name is unique per run). An explicit --mission (or MSTC_MISSION) wins; without a run
+    directory the settings stay."""
     from bus.config import DEFAULT_MISSION, ENV_MISSION
-    from deploy.fleet import FleetError, RunDir, latest_run_dir
+    from deploy.errors import FleetError
+    from deploy.fleet import RunDir, latest_run_dir
 
     explicit_mission = args.mission != DEFAULT_MISSION or ENV_MISSION in os.environ
     if args.run_dir is None and explicit_mission:
-        return
+        return settings
     try:
         run_dir = args.run_dir if args.run_dir is not None else latest_run_dir()
         info = RunDir(run_dir).read_fleet()
     except FleetError as error:
         if args.run_dir is not None:
             raise UsageError(str(error)) from error
-        return
-    if not explicit_mission:
-        args.mission = info.mission
-    if not args.connect:
-        args.connect = [info.endpoint]
-    print(f"watching mission {args.mission} of {run_dir} via {args.connect[0]}",
+        return settings
+    followed = replace(settings, mission=settings.mission if explicit_mission else info.mission,
+                       connect=settings.connect or (info.endpoint,))
+    print(f"watching mission {followed.mission} of {run_dir} via {followed.connect[0]}",
           file=sys.stderr)
+    return followed
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        # Caught here too: under "python -m deploy.cli" the dispatcher's UsageError is another
-        # class object than the one deploy.cli exports to us.
-        print(f"mstc monitor: error: {error}", file=sys.stderr)
-        return 2
-
-
-def _run(args: argparse.Namespace) -> int:
     from deploy.monitor.app import PlainScreen, RichScreen, Screen, Watcher, watch_live
 
-    _follow_run_dir(args)
     try:
-        settings = settings_from_args(args)
+        settings = _follow_run_dir(args, settings_from_args(args))
     except BusError as error:
         raise UsageError(str(error)) from error
     if args.record is not None and not args.record.parent.is_dir():

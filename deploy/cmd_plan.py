@@ -8,7 +8,8 @@ import sys
 from typing import Any
 
 from bus.argtypes import positive_int
-from deploy.cli import UsageError
+from deploy.errors import UsageError
+from planner.algorithms import choices_help, names
 from planner.geometry import cell_of
 from planner.grid import work_area
 from planner.maps import resolve_world
@@ -18,24 +19,28 @@ from planner.placement import parse_starts, random_starts
 from planner.trees import ALL_TREE_KINDS, build_tree
 from planner.types import Plan
 
-ALGOS = ("nb", "bt", "opt", "balanced")
+ALGOS = names(plans=True)  # every algorithm that makes an offline plan
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--map", required=True, metavar="FILE|NAME",
-                        help="map file (.txt, .map, .yaml, .pgm, .png) or a builtin world name")
+    parser.add_argument("--world", "--map", dest="world", required=True, metavar="FILE|NAME",
+                        help="map file (.txt, .map, .yaml, .pgm, .png) or a builtin world "
+                             "name (--map: the same option, its older spelling)")
     parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
                         help="pixels per sub-cell (tool width) for image maps")
     robots = parser.add_mutually_exclusive_group(required=True)
-    robots.add_argument("--robots", metavar="R,C;R,C;...",
+    robots.add_argument("--starts", metavar="R,C;R,C;...",
                         help="robot starts as sub-cell coordinates (row, col)")
+    robots.add_argument("-n", "--robots", metavar="K",
+                        help="place K robots at random free sub-cells (see --seed). "
+                             "Deprecated: --robots 'R,C;R,C;...' (start positions), the old "
+                             "meaning, still works; use --starts")
     robots.add_argument("--random-robots", type=positive_int, metavar="K",
-                        help="place K robots at random free sub-cells (see --seed)")
+                        help="the same as --robots K (an alias kept for old scripts)")
     parser.add_argument("--seed", type=int, default=0, help="seed for placement and trees")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
-                        help="nb: non-backtracking, bt: simple backtracking, opt: optimal "
-                        "backtracking (paper 003); balanced: near-equal connected regions, "
-                        "one STC walk each (--tree does not apply)")
+                        help=f"{choices_help(ALGOS)} (balanced: one STC walk per region, "
+                             f"--tree does not apply; default opt)")
     parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
                         help="spanning tree kind (createtree: paper 000; tmstc: paper 002)")
     parser.add_argument("--speeds", metavar="S,S,...",
@@ -104,12 +109,30 @@ def summary_lines(plan: Plan, metrics: PlanMetrics, tree: str) -> list[str]:
     return lines
 
 
+def _placement(args: argparse.Namespace) -> tuple[str | None, int | None]:
+    """(start positions, robot count): one of them, from --starts, --robots or its aliases."""
+    if args.starts is not None:
+        return args.starts, None
+    if args.random_robots is not None:
+        return None, int(args.random_robots)
+    text = str(args.robots).strip()
+    if text.isascii() and text.isdigit():
+        if int(text) < 1:
+            raise UsageError(f"--robots: expected at least 1 robot, got {text}")
+        return None, int(text)
+    print("mstc plan: warning: --robots with start positions is deprecated, use --starts",
+          file=sys.stderr)
+    return text, None
+
+
 def run(args: argparse.Namespace) -> int:
-    grid = resolve_world(args.map, cell_size=args.cell_size)
-    if args.robots is not None:
-        starts = parse_starts(args.robots)
+    grid = resolve_world(args.world, cell_size=args.cell_size)
+    starts_text, count = _placement(args)
+    if starts_text is not None:
+        starts = parse_starts(starts_text)
     else:
-        starts = random_starts(grid, args.random_robots, args.seed)
+        assert count is not None
+        starts = random_starts(grid, count, args.seed)
     k = len(starts)
     speeds = _floats(args.speeds, k, "speeds")
     fuel = _fuel(args.fuel, k)

@@ -7,8 +7,6 @@ import math
 import sys
 from pathlib import Path
 
-from deploy.cli import UsageError
-
 
 def _speed(text: str) -> float:
     try:
@@ -29,16 +27,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        # Caught here too: under "python -m deploy.cli" the dispatcher's UsageError is another
-        # class object than the one deploy.cli exports to us.
-        print(f"mstc replay: error: {error}", file=sys.stderr)
-        return 2
-
-
-def _run(args: argparse.Namespace) -> int:
     from deploy.monitor.app import PlainScreen, RichScreen, Screen, Watcher, replay
     from deploy.monitor.recorder import read_recording
 

@@ -1,7 +1,10 @@
 """``mstc report FILE``: figures and invariant checks of a recorded mission.
 
-Exit codes: 0 every invariant held (or could not be checked), 1 an invariant failed,
-2 the file is unusable.
+A recording of ``mstc tree-fleet`` gets the launcher's own verdict instead: the robots'
+reports against the lockstep run with the same deaths (deploy.monitor.tree_report).
+
+Exit codes: 0 every invariant held or could not be checked (tree missions: the verdict is
+"ok"), 1 an invariant failed (or the verdict is not "ok"), 2 the file is unusable.
 """
 
 from __future__ import annotations
@@ -10,8 +13,6 @@ import argparse
 import json
 import sys
 from pathlib import Path
-
-from deploy.cli import UsageError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -23,22 +24,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except UsageError as error:
-        # Caught here too: under "python -m deploy.cli" the dispatcher's UsageError is another
-        # class object than the one deploy.cli exports to us.
-        print(f"mstc report: error: {error}", file=sys.stderr)
-        return 2
-
-
-def _run(args: argparse.Namespace) -> int:
     from deploy.monitor.recorder import read_recording
     from deploy.monitor.report import build_report, format_report, replay_model
+    from deploy.monitor.tree_report import build_tree_report, tree_model
 
     recording = read_recording(args.file)
     for error in recording.errors:
         print(f"{args.file}:{error.line}: skipped: {error.reason}", file=sys.stderr)
+    tree_mission = tree_model(recording)
+    if tree_mission is not None:
+        return _tree_report(build_tree_report(tree_mission), args.json)
     report = build_report(recording)
     if args.json:
         print(json.dumps(report.to_json(), indent=2, sort_keys=True))
@@ -52,3 +47,13 @@ def _run(args: argparse.Namespace) -> int:
     for inv in failed:
         print(f"mstc report: invariant failed: {inv.name}: {inv.detail}", file=sys.stderr)
     return 1 if failed else 0
+
+
+def _tree_report(summary: dict[str, object], as_json: bool) -> int:
+    from deploy.tree_verdict import format_verdict
+
+    print(json.dumps(summary, indent=2, sort_keys=True) if as_json else format_verdict(summary))
+    if summary["verdict"] != "ok":
+        print(f"mstc report: verdict: {summary['verdict']}", file=sys.stderr)
+        return 1
+    return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from planner.algorithms import Family, choices_help, names
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import tree_from_spec
 from planner.treecover.types import CoverageResult, Tree
@@ -14,8 +15,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tree", required=True,
                         help="perfect:N=3,H=7 | general:N=2,H=10,remove=R,at=HEIGHT,seed=S | "
                              "office | FILE.tree (lines 'parent child', # comments)")
-    parser.add_argument("--robots", type=int, required=True, help="team size k")
-    parser.add_argument("--algo", choices=["cocta", "ncocta"], default="cocta")
+    parser.add_argument("-n", "--robots", type=int, required=True, help="team size k")
+    parser.add_argument("--algo", choices=names(Family.TREE), default="cocta",
+                        help=f"{choices_help(names(Family.TREE))} (default cocta)")
     parser.add_argument("--plot", metavar="PNG", help="save robots' spread over time")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
 

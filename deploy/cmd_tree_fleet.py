@@ -7,6 +7,10 @@ With ``--kill``, the lockstep run to equal is ``run_with_failures`` with every r
 the step the fleet removed it (a SIGKILL lands between steps at a moment the launcher does not
 choose exactly; the fleet's agents decide at which step boundary the death counts).
 
+The run directory holds fleet.json like ``mstc up``'s, so ``mstc kill ID`` (a fail-stop robot,
+judged like ``--kill``), ``mstc down`` and ``mstc monitor`` work on a tree mission; ``--record``
+writes every message for ``mstc report`` (which recomputes this verdict) and ``mstc replay``.
+
 Exit codes: 0 covered, connected at every step and equal to the lockstep run; 1 otherwise (a
 process failed, the run stalled, or the results differ); 2 usage or start-up error.
 """
@@ -14,28 +18,38 @@ process failed, the run stalled, or the results differ); 2 usage or start-up err
 from __future__ import annotations
 
 import argparse
-import asyncio
 import json
+from pathlib import Path
 
 from bus.argtypes import positive, positive_int
-from deploy.cli import UsageError
-from deploy.fleet import default_run_dir, unique_mission, usage_errors_as_lines
-from deploy.tree_fleet import TreeFleet, TreeFleetOptions, TreeFleetOutcome
-from planner.treecover.failures import run_with_failures
+from bus.config import ConnectionSettings
+from deploy.errors import UsageError
+from deploy.fleet import RunDir, check_port_free, default_run_dir, unique_mission
+from deploy.settings import KillOrder
+from deploy.supervisor import run_recorded
+from deploy.tree_fleet import TreeFleet, TreeFleetOptions, free_endpoint
+from deploy.tree_verdict import format_verdict, lockstep_run, summarize
+from planner.algorithms import Family, choices_help, names
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import tree_from_spec
-from planner.treecover.types import CoverageResult, Tree
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tree", required=True,
                         help="perfect:N=3,H=4 | general:N=2,H=6,remove=R,at=HEIGHT,seed=S | "
                              "office | FILE.tree")
-    parser.add_argument("--robots", type=positive_int, required=True, help="team size k")
-    parser.add_argument("--algo", choices=["cocta", "ncocta"], default="cocta")
+    parser.add_argument("-n", "--robots", type=positive_int, required=True, help="team size k")
+    parser.add_argument("--algo", choices=names(Family.TREE), default="cocta",
+                        help=f"{choices_help(names(Family.TREE))} (default cocta)")
     parser.add_argument("--listen", metavar="ENDPOINT",
                         help="router endpoint (default: a free port on 127.0.0.1)")
-    parser.add_argument("--run-dir", metavar="DIR", help="logs and pids (default runs/...)")
+    parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
+                        help="logs, PID files and fleet.json (default runs/<time>-<mission>)")
+    parser.add_argument("--mission", default=None,
+                        help="mission name (default: a unique fleet-<hex> per run)")
+    parser.add_argument("--record", type=Path, default=None, metavar="FILE",
+                        help="record every message of the mission to FILE (JSON Lines; "
+                             "see mstc replay and mstc report)")
     parser.add_argument("--step-timeout", type=positive, default=10.0, metavar="SECONDS",
                         help="an agent's longest wait for one step's reports (default 10)")
     parser.add_argument("--stall-timeout", type=positive, default=30.0, metavar="SECONDS",
@@ -50,83 +64,51 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--settle", type=positive, default=1.0, metavar="SECONDS",
                         help="how long agents wait for a dead robot's last report (default 1)")
     parser.add_argument("--json", action="store_true", help="print one JSON object at the end")
+    parser.add_argument("--plain", action="store_true",
+                        help="plain progress lines (the only kind this command prints; "
+                             "accepted so that mstc up's command lines carry over)")
 
 
-def kill_order(text: str) -> tuple[int, int]:
+def kill_order(text: str) -> KillOrder:
     robot, sep, step = text.partition("@")
     if not sep or not (robot.isascii() and robot.isdigit() and step.isascii()
                        and step.isdigit()):
         raise argparse.ArgumentTypeError(f"expected ROBOT@STEP such as 2@10, got {text!r}")
-    return int(robot), int(step)
+    return KillOrder(int(robot), step=int(step))
 
 
 def run(args: argparse.Namespace) -> int:
-    return usage_errors_as_lines("tree-fleet", _run, args)
-
-
-def _run(args: argparse.Namespace) -> int:
     tree = tree_from_spec(args.tree)
-    victims = [robot for robot, _ in args.kill]
+    victims = [order.robot for order in args.kill]
     if any(robot >= args.robots for robot in victims):
         raise UsageError(f"--kill {max(victims)}@...: robots are 0..{args.robots - 1}")
     if len(set(victims)) != len(victims) or len(victims) >= args.robots:
         raise UsageError("--kill: each robot at most once, and one robot must survive")
+    if args.record is not None and not args.record.parent.is_dir():
+        raise UsageError(f"--record {args.record}: directory {args.record.parent} does not exist")
     lockstep = run_coverage(tree, args.robots, args.algo)  # also rejects infeasible inputs
-    mission = unique_mission()
+    if args.listen is not None:
+        check_port_free(args.listen)  # another fleet there: one line now, not a failed router
+    mission = args.mission or unique_mission()
     options = TreeFleetOptions(
         tree=args.tree, robots=args.robots, algo=args.algo, mission=mission,
         run_dir=default_run_dir(mission) if args.run_dir is None else args.run_dir,
-        endpoint=args.listen, lease_ms=args.lease_ms, step_timeout=args.step_timeout,
-        stall_timeout=args.stall_timeout, kills=tuple(args.kill), settle=args.settle)
+        endpoint=args.listen or free_endpoint(), lease_ms=args.lease_ms,
+        step_timeout=args.step_timeout, stall_timeout=args.stall_timeout,
+        kills=tuple(args.kill), settle=args.settle)
     say = (lambda _text: None) if args.json else (lambda text: print(text, flush=True))
-    outcome = asyncio.run(TreeFleet(options, say).run())
-    deaths = outcome.observed.deaths
-    lockstep_cuts = 0
-    if deaths:
-        repaired = run_with_failures(tree, args.robots, args.algo, deaths)
-        lockstep, lockstep_cuts = repaired.result, repaired.cut_at_death
-    summary = summarize(tree, lockstep, outcome, lockstep_cuts)
-    if args.json:
-        print(json.dumps(summary))
-    else:
-        for key, value in summary.items():
-            print(f"{key:>22}: {value}")
+    connection = ConnectionSettings(connect=(options.endpoint or "",), mission=mission,
+                                    lease_ms=options.lease_ms)
+    outcome = run_recorded(TreeFleet(options, say).run(), connection, args.record,
+                           "tree-fleet")
+    lockstep, lockstep_cuts = lockstep_run(tree, args.robots, args.algo,
+                                           outcome.observed.deaths)
+    summary = summarize(tree, lockstep, outcome.observed, ok=outcome.ok,
+                        message=outcome.message, lockstep_cuts=lockstep_cuts,
+                        radio=outcome.radio, wall_seconds=outcome.wall_seconds,
+                        mission_seconds=outcome.mission_seconds)
+    summary["complete"] = outcome.observed.coverage_time is not None \
+        and outcome.observed.visited == tree.n
+    RunDir(options.run_dir).write_summary(summary)
+    print(json.dumps(summary) if args.json else format_verdict(summary))
     return 0 if summary["verdict"] == "ok" else 1
-
-
-def summarize(tree: Tree, lockstep: CoverageResult, outcome: TreeFleetOutcome,
-              lockstep_cuts: int = 0) -> dict[str, object]:
-    """The run's figures beside the lockstep run's (with the same failures, if any), and a
-    verdict: "ok" or every problem found."""
-    seen, radio = outcome.observed, outcome.radio
-    time = seen.coverage_time
-    problems = [] if outcome.ok else [outcome.message]
-    if time != lockstep.time:
-        problems.append(f"fleet coverage time {time} != lockstep {lockstep.time}")
-    if seen.visited != tree.n:
-        problems.append(f"visited {seen.visited} of {tree.n} nodes")
-    if not seen.connected or seen.jumps:
-        problems.append(f"connected at every step: {seen.connected}, jumps: {seen.jumps}")
-    if not lockstep.connected:
-        problems.append("the lockstep run with these failures was not connected at every step")
-    if seen.cut_at_death != lockstep_cuts:
-        problems.append(f"cut at {seen.cut_at_death} death steps, lockstep {lockstep_cuts}")
-    return {
-        "tree": tree.name, "nodes": tree.n, "height": tree.height,
-        "algo": lockstep.algo.value, "robots": lockstep.robots,
-        "split_heights": list(lockstep.splits.heights),
-        "coverage_time": time, "lockstep_time": lockstep.time,
-        "speedup": round(lockstep.single_time / time, 4) if time else None,
-        "visited": seen.visited, "connected_every_step": seen.connected,
-        "deaths": {str(robot): step for robot, step in sorted(seen.deaths.items())},
-        "cut_at_death": seen.cut_at_death,
-        "wall_seconds": round(outcome.wall_seconds, 2),
-        "mission_seconds": None if outcome.mission_seconds is None else
-        round(outcome.mission_seconds, 2),
-        "transmissions": seen.transmissions,
-        "deliveries": radio.deliveries if radio else None,
-        "refused_out_of_range": radio.refused if radio else None,
-        "radio_pending": radio.pending if radio else None,
-        "radio_dropped": (radio.unlocated + radio.spoofed) if radio else None,
-        "verdict": "ok" if not problems else "; ".join(problems),
-    }

@@ -9,149 +9,50 @@ Exit codes: 0 complete; 1 incomplete (stalled, robots all lost, a process failed
 from __future__ import annotations
 
 import argparse
-import asyncio
-import math
-import os
-import re
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from bus.argtypes import positive, positive_int, time_scale
-from bus.config import DEFAULT_ENDPOINT, DEFAULT_LEASE_MS
-from deploy.cli import UsageError
+from bus.config import DEFAULT_ENDPOINT, DEFAULT_LEASE_MS, ConnectionSettings
+from deploy.errors import FleetError, UsageError
 from deploy.fleet import (
-    FleetError,
     check_port_free,
     default_run_dir,
     port_reachable,
     unique_mission,
-    usage_errors_as_lines,
 )
-from deploy.summary import reachable_sub_cells
-from planner.geometry import cell_of
-from planner.grid import coarsen, validate_starts, work_area
-from planner.maps import resolve_world
-from planner.offline.plan import make_plan
-from planner.placement import parse_starts, random_starts
-from planner.trees import ALL_TREE_KINDS, build_tree
-from planner.types import BoolArray, OccupancyGrid, SubCell
+from deploy.launch import launch
+from deploy.settings import (
+    CROWDED_AGENTS_PER_CORE,
+    CROWDED_DEAD_AFTER_S,
+    CROWDED_LEASE_MS,
+    DEFAULT_DEAD_AFTER_S,
+    DEFAULT_STALL_S,
+    DEFAULT_TIME_SCALE,
+    STALL_MOVES,
+    MissionSetup,
+    UpSettings,
+    check_kills,
+    liveness,
+    parse_kill,
+    stall_timeout,
+)
+from deploy.supervisor import run_recorded
+from planner.algorithms import Family, choices_help, names
+from planner.trees import ALL_TREE_KINDS
 
-ALGOS = ("nb", "bt", "opt", "ormstc")
-# 40 simulated seconds per wall second: a forward step (1.93 s simulated) takes ~50 ms, so
-# coverage visibly grows, and the office demo (6 robots, one killed: ~330 moves of ~2.5
-# simulated seconds for the robot that takes over) ends in about 25 s of wall time.
-DEFAULT_TIME_SCALE = 40.0
-DEFAULT_STALL_S = 20.0
-# Heartbeat timeout handed to the agents. A SIGKILL is seen through the closed link and a hung
-# process through its lease (~0.75 s), whatever this is; 1 s heartbeats alone were missed by
-# CPU-starved agents on a busy 2-core machine and healthy robots were fenced
-# (docs/operations.md, "Detection against false suspicion").
-DEFAULT_DEAD_AFTER_S = 3.0
-# Beyond this many agents per CPU core, start-up and time-scale-0 missions starve processes
-# for over a second: 30 agents on 2 cores lost every robot to lease expiry at a 1 s lease,
-# none at 5 s. Crowded fleets get the long lease and heartbeat timeout.
-CROWDED_AGENTS_PER_CORE = 6
-CROWDED_LEASE_MS = 5000
-CROWDED_DEAD_AFTER_S = 5.0
-# A taker may walk this many already-covered sub-cells to reach a dead robot's section
-# without covering anything new; the default stall timeout allows for it at any time scale.
-STALL_MOVES = 100
-MOVE_SIM_S = 2.5  # forward 1.93 s plus a share of turns (docs/simhw.md)
-_KILL_RE = re.compile(
-    r"^(?P<robot>\d+)@(?:(?:progress=)?(?P<pct>\d+(?:\.\d+)?)%|progress=(?P<pct2>\d+(?:\.\d+)?)"
-    r"|(?P<sec>\d+(?:\.\d+)?)s?)$")
-
-
-@dataclass(frozen=True)
-class KillOrder:
-    """Kill ``robot`` at ``seconds`` after the mission started, or at ``percent`` coverage.
-    ``hw`` fails its body in simhw instead of killing its process."""
-
-    robot: int
-    seconds: float | None = None
-    percent: float | None = None
-    hw: bool = False
-
-    def describe(self) -> str:
-        when = f"{self.seconds:g} s" if self.seconds is not None else f"{self.percent:g} %"
-        what = "fail body of" if self.hw else "SIGKILL agent"
-        return f"{what} {self.robot} at {when}"
-
-
-def parse_kill(text: str, hw: bool = False) -> KillOrder:
-    """``ID@SECONDS``, ``ID@Ns``, ``ID@progress=P`` or ``ID@P%`` (coverage percent)."""
-    match = _KILL_RE.match(text.strip())
-    if match is None:
-        raise argparse.ArgumentTypeError(
-            f"expected ID@SECONDS or ID@progress=PERCENT (e.g. 2@3 or 2@progress=40), "
-            f"got {text!r}")
-    pct = match["pct"] or match["pct2"]
-    if pct is not None:
-        if not 0 <= float(pct) <= 100:
-            raise argparse.ArgumentTypeError(f"coverage percent must be 0..100 in {text!r}")
-        return KillOrder(int(match["robot"]), percent=float(pct), hw=hw)
-    return KillOrder(int(match["robot"]), seconds=float(match["sec"]), hw=hw)
-
-
-@dataclass(frozen=True)
-class MissionSetup:
-    """The mission as the launcher plans it before starting anything."""
-
-    world: str
-    cell_size: int | None
-    grid: OccupancyGrid
-    starts: tuple[SubCell, ...]
-    algo: str
-    tree: str
-    seed: int
-    time_scale: float
-    reachable: BoolArray
-    planned_makespan: int
-
-    @property
-    def k(self) -> int:
-        return len(self.starts)
-
-    @classmethod
-    def from_args(cls, args: argparse.Namespace) -> MissionSetup:
-        """Load the map, place the robots and plan (PlannerError for user mistakes)."""
-        grid = resolve_world(args.world, args.cell_size)
-        if args.starts:
-            starts = parse_starts(args.starts)
-            if len(starts) != args.robots:
-                raise UsageError(f"--starts gives {len(starts)} robots, -n says {args.robots}")
-        else:
-            starts = random_starts(grid, args.robots, args.seed)
-        validate_starts(grid, coarsen(grid), starts)
-        if args.algo == "ormstc":
-            # ORMSTC plans nothing (its agents get no map); the lockstep simulator's coverage
-            # time on the same world and starts stands in for the planned makespan, and it
-            # rejects two robots in one cell before any process starts.
-            from planner.ormstc.lockstep import simulate
-
-            planned = simulate(grid, starts).makespan
-        else:
-            # The agents plan the same way (agent/plan.py); here it gives the planned
-            # makespan and rejects unplannable missions before any process starts.
-            area = work_area(grid, starts)
-            tree = build_tree(area.cells, args.tree, seed=args.seed,
-                              starts=[cell_of(s) for s in starts])
-            planned = make_plan(area, tree, args.algo).makespan
-        return cls(world=args.world, cell_size=args.cell_size, grid=grid, starts=starts,
-                   algo=args.algo, tree=args.tree, seed=args.seed, time_scale=args.time_scale,
-                   reachable=reachable_sub_cells(grid, starts),
-                   planned_makespan=planned)
+# what runs as a fleet on a grid: every offline and on-line algorithm that declares a fleet
+ALGOS = names(Family.OFFLINE, fleet=True) + names(Family.ONLINE, fleet=True)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-n", "--robots", type=positive_int, required=True, metavar="K",
                         help="number of robots (agent processes)")
-    parser.add_argument("--world", default="office", metavar="FILE|NAME",
-                        help="builtin world name or map file (default office)")
+    parser.add_argument("--world", "--map", dest="world", default="office", metavar="FILE|NAME",
+                        help="builtin world name or map file (default office; --map: the "
+                             "same option, as mstc plan spelled it)")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
-                        help="offline MSTC variant the agents run, or ormstc (on-line; "
-                             "its agents read no map) (default opt)")
+                        help=f"{choices_help(ALGOS)} (default opt)")
     parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
                         help="spanning tree kind (default dfs)")
     parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
@@ -208,64 +109,43 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "see mstc replay and mstc report)")
 
 
-def check_kills(args: argparse.Namespace) -> list[KillOrder]:
-    orders: list[KillOrder] = [*args.kill, *args.kill_hw]
-    for order in orders:
-        if order.robot >= args.robots:
-            raise UsageError(f"--kill {order.robot}: robots are 0..{args.robots - 1}")
-    return orders
+def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSettings:
+    """The typed settings of the command line, defaults resolved (the one place that reads
+    the namespace)."""
+    kills = check_kills((*args.kill, *args.kill_hw), args.robots)
+    if args.record is not None and not args.record.parent.is_dir():
+        raise UsageError(f"--record {args.record}: directory {args.record.parent} does not exist")
+    lease_ms, dead_after = liveness(args.robots, args.lease_ms, args.dead_after, cores)
+    mission = args.mission or unique_mission()
+    return UpSettings(
+        robots=args.robots, world=args.world, cell_size=args.cell_size, starts=args.starts,
+        algo=args.algo, tree=args.tree, seed=args.seed, time_scale=args.time_scale,
+        kills=kills, mission=mission,
+        run_dir=Path(args.run_dir or default_run_dir(mission)),
+        listen=args.listen, connect=args.connect, lease_ms=lease_ms, dead_after=dead_after,
+        stall_timeout=stall_timeout(args.time_scale, args.stall_timeout),
+        start_timeout=args.start_timeout or 30.0 + args.robots, linger=args.linger,
+        agent_args=tuple(args.agent_arg), simhw_args=tuple(args.simhw_arg), plain=args.plain,
+        record=args.record)
 
 
-def stall_timeout(args: argparse.Namespace) -> float:
-    if args.stall_timeout is not None:
-        return float(args.stall_timeout)
-    if args.time_scale == 0 or math.isinf(args.time_scale):
-        return DEFAULT_STALL_S
-    return DEFAULT_STALL_S + STALL_MOVES * MOVE_SIM_S / args.time_scale
-
-
-def liveness_defaults(args: argparse.Namespace, cores: int | None = None) -> None:
-    """Fill in --lease-ms and --dead-after when not given, by agents per CPU core."""
-    crowded = args.robots > CROWDED_AGENTS_PER_CORE * (cores or os.cpu_count() or 1)
-    if args.lease_ms is None:
-        args.lease_ms = CROWDED_LEASE_MS if crowded else DEFAULT_LEASE_MS
-    if args.dead_after is None:
-        args.dead_after = CROWDED_DEAD_AFTER_S if crowded else DEFAULT_DEAD_AFTER_S
-
-
-def endpoint_of(args: argparse.Namespace) -> str:
+def endpoint_of(settings: UpSettings) -> str:
     """The router endpoint the fleet uses; FleetError at once if it is unusable."""
-    if args.connect is not None:
-        if not port_reachable(args.connect):
-            raise FleetError(f"no router answers at {args.connect} (start one with "
-                             f"'mstc router --listen {args.connect}' or zenohd)")
-        return str(args.connect)
-    check_port_free(args.listen)
-    return str(args.listen)
+    if settings.connect is not None:
+        if not port_reachable(settings.connect):
+            raise FleetError(f"no router answers at {settings.connect} (start one with "
+                             f"'mstc router --listen {settings.connect}' or zenohd)")
+        return settings.connect
+    check_port_free(settings.listen)
+    return settings.listen
 
 
 def run(args: argparse.Namespace) -> int:
-    return usage_errors_as_lines("up", _run, args)
-
-
-def _run(args: argparse.Namespace) -> int:
-    from deploy.launch import launch
-
-    orders = check_kills(args)
-    if args.record is not None and not args.record.parent.is_dir():
-        raise UsageError(f"--record {args.record}: directory {args.record.parent} does not exist")
-    args.stall_timeout = stall_timeout(args)
-    liveness_defaults(args)
-    setup = MissionSetup.from_args(args)  # loads the map and plans: user mistakes stop here
-    endpoint = endpoint_of(args)
-    mission = args.mission or unique_mission()
-    run_dir = args.run_dir or default_run_dir(mission)
+    settings = up_settings(args)
+    setup = MissionSetup.plan(settings)  # loads the map and plans: user mistakes stop here
+    endpoint = endpoint_of(settings)
     started = time.monotonic()
-    main = launch(setup, orders, endpoint, mission, Path(run_dir), args, started)
-    if args.record is None:
-        return asyncio.run(main)
-    from bus.config import ConnectionSettings
-    from deploy.monitor.app import recorded
-
-    settings = ConnectionSettings(connect=(endpoint,), mission=mission, lease_ms=args.lease_ms)
-    return asyncio.run(recorded(main, settings, args.record))
+    connection = ConnectionSettings(connect=(endpoint,), mission=settings.mission,
+                                    lease_ms=settings.lease_ms)
+    return run_recorded(launch(setup, settings, endpoint, started), connection,
+                        settings.record, "up")

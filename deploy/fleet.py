@@ -9,14 +9,13 @@ unrelated process that reused the pid after the fleet ended.
 Run directory layout::
 
     <run>/fleet.json        FleetInfo: mission, endpoint, world, processes (read by down/kill)
-    <run>/summary.json      the end-of-mission summary (written by mstc up)
+    <run>/summary.json      the end-of-mission summary (mstc up; mstc tree-fleet's verdict)
     <run>/logs/<name>.log   stdout+stderr of each process (router, simhw, agent-<i>)
     <run>/pids/<name>.pid   "<pid> <start-ticks>" of each process, up.pid for the launcher
 """
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import json
 import os
@@ -26,34 +25,19 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from deploy.cli import UsageError
+from deploy.errors import FleetError
 
 RUNS_ROOT = Path("runs")
 FLEET_FILE = "fleet.json"
 SUMMARY_FILE = "summary.json"
-LAUNCHER = "up"
-
-
-class FleetError(UsageError):
-    """A fleet could not be started, found or stopped; the message is one readable line."""
-
-
-def usage_errors_as_lines(command: str, body: Callable[[argparse.Namespace], int],
-                          args: argparse.Namespace) -> int:
-    """``body(args)``, with a UsageError (FleetError included) printed as one line, exit 2.
-
-    Caught here too because under "python -m deploy.cli" the dispatcher's UsageError is
-    another class object than the one FleetError derives from."""
-    try:
-        return body(args)
-    except UsageError as error:
-        print(f"mstc {command}: error: {error}", file=sys.stderr)
-        return 2
+LAUNCHER = "up"  # the launcher's role and name in fleet.json, whichever command it is
+# Stopping order by role: agents first (they would report a vanished world as a failure),
+# then the world processes, the router last (everyone's link).
+SHUTDOWN_ORDER = {"agent": 0, "simhw": 1, "radio": 1, "router": 2}
 
 
 @dataclass(frozen=True)
@@ -61,7 +45,7 @@ class ProcessRecord:
     """One process of a fleet as written to fleet.json."""
 
     name: str
-    role: str  # "up", "router", "simhw" or "agent"
+    role: str  # "up" (the launcher), "router", "simhw", "radio" or "agent"
     pid: int
     started: int | None  # start time in clock ticks since boot (/proc/<pid>/stat field 22)
     log: str = ""
@@ -70,7 +54,9 @@ class ProcessRecord:
 
 @dataclass(frozen=True)
 class FleetInfo:
-    """What ``mstc kill`` and ``mstc down`` need to know about a running fleet."""
+    """What ``mstc kill``, ``mstc down`` and ``mstc monitor`` need to know about a running
+    fleet. ``kind`` "grid" (mstc up: ``world`` is a map) or "tree" (mstc tree-fleet: ``world``
+    is the tree spec, no simulated bodies)."""
 
     mission: str
     endpoint: str
@@ -82,16 +68,21 @@ class FleetInfo:
     time_scale: float
     created: float
     processes: tuple[ProcessRecord, ...] = field(default_factory=tuple)
+    kind: str = "grid"
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
 
+    def to_fields(self) -> dict[str, Any]:
+        """The constructor's arguments (``processes`` left as records)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> FleetInfo:
         procs = tuple(ProcessRecord(**p) for p in data.get("processes", ()))
-        fields = {k: v for k, v in data.items() if k != "processes"}
-        fields["starts"] = tuple((int(r), int(c)) for r, c in fields.get("starts", ()))
-        return cls(**fields, processes=procs)
+        values = {k: v for k, v in data.items() if k != "processes"}
+        values["starts"] = tuple((int(r), int(c)) for r, c in values.get("starts", ()))
+        return cls(**values, processes=procs)
 
     def agent(self, robot: int) -> ProcessRecord:
         for proc in self.processes:
@@ -262,14 +253,9 @@ class Child:
         return log_tail(self.log, lines)
 
 
-# Not "-m deploy.cli": that imports deploy.cli twice (as __main__ and as deploy.cli), so
-# exceptions defined there would escape the dispatcher's one-line error handling.
-_MAIN = "import sys; from deploy.cli import main; sys.exit(main())"
-
-
 def mstc_argv(command: str, *args: str) -> list[str]:
     """The argv of an ``mstc <command>`` child run by this Python interpreter."""
-    return [sys.executable, "-c", _MAIN, command, *args]
+    return [sys.executable, "-m", "deploy.cli", command, *args]
 
 
 def log_tail(path: Path, lines: int = 15) -> str:

@@ -3,25 +3,23 @@
 One asyncio loop and one TaskGroup (world poller + watcher). The bus session of the launcher
 is opened before simhw and the agents start, so no start-up message is missed; coverage is
 the simhw ground truth (live CoverEvents, and the WorldState query every POLL_S as the
-authority). Children are stopped agents first, then simhw, then the router, each with
-SIGTERM and a SIGKILL after a grace period, whatever ended the mission (also exceptions).
+authority). The processes, signals, kill schedule, fleet.json and the ordered shutdown are
+deploy.supervisor's, shared with ``mstc tree-fleet``.
 """
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import contextlib
-import os
 import signal
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 from bus import keys
-from bus.bridge import BoundedFifo, Bus, LatestWins
+from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
 from bus.messages import (
+    MESSAGE_TYPES,
     AdminCommand,
     AdminReply,
     CoverEvent,
@@ -32,26 +30,17 @@ from bus.messages import (
     WorldState,
 )
 from bus.router import READY_MARK as ROUTER_READY
-from deploy.cmd_up import KillOrder, MissionSetup
-from deploy.fleet import (
-    LAUNCHER,
-    Child,
-    FleetError,
-    FleetInfo,
-    ProcessRecord,
-    RunDir,
-    mstc_argv,
-    start_ticks,
-    stop_children,
-    wait_ready,
-)
+from deploy.errors import FleetError
+from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
 from deploy.progress import ProgressView, make_progress
+from deploy.settings import MissionSetup, UpSettings
 from deploy.summary import MissionTracker, format_summary, summarize
+from deploy.supervisor import KillSchedule, Supervisor
 
 SIMHW_READY = "simhw ready"
+SUB_BUFFER = 65536  # messages of every kind, as a monitor's feed (deploy.monitor.live)
 POLL_S = 0.5
 TICK_S = 0.1
-STOP_GRACE_S = 5.0
 # Agent exit codes (agent/main.py): 0 done or left, 4 fenced; anything else is a failure.
 AGENT_DONE, AGENT_FENCED = 0, 4
 
@@ -65,25 +54,24 @@ class Outcome:
 class Launcher:
     """Starts, supervises and stops one fleet."""
 
-    def __init__(self, setup: MissionSetup, orders: list[KillOrder], endpoint: str,
-                 mission: str, run_dir: RunDir, args: argparse.Namespace,
-                 view: ProgressView) -> None:
+    def __init__(self, setup: MissionSetup, settings: UpSettings, endpoint: str,
+                 run_dir: RunDir, view: ProgressView) -> None:
         self.setup = setup
-        self.orders = list(orders)
+        self.kills = KillSchedule(settings.kills)
         self.endpoint = endpoint
-        self.mission = mission
+        self.mission = settings.mission
         self.run_dir = run_dir
-        self.args = args
+        self.supervisor = Supervisor(run_dir)
+        self.settings = settings
         self.view = view
-        self.own_router = args.connect is None
+        self.own_router = settings.own_router
         self.router: Child | None = None
         self.simhw: Child | None = None
         self.agents: list[Child] = []
         self.tracker = MissionTracker(setup.reachable, setup.k)
         self.t0 = time.monotonic()
-        self.stop = asyncio.Event()
-        self.wake = asyncio.Event()  # set when a percent-triggered kill may be due
-        self.stop_signal: int | None = None
+        # set when a percent-triggered kill may be due (and by a stopping signal)
+        self.wake = self.supervisor.wake
         self.failed_verdict = ""
         self.killed_at: dict[int, float] = {}  # robots failed by us, until a peer notices
         self._reported: set[str] = set()
@@ -93,20 +81,22 @@ class Launcher:
 
     def _connection(self) -> list[str]:
         return ["--mode", "client", "--connect", self.endpoint, "--mission", self.mission,
-                "--lease-ms", str(self.args.lease_ms)]
+                "--lease-ms", str(self.settings.lease_ms)]
 
     def _spawn(self, name: str, role: str, argv: list[str], robot: int | None = None) -> Child:
-        child = Child(name, role, argv, self.run_dir.log_path(name), robot)
-        self.run_dir.write_pid(child.record)
-        return child
+        return self.supervisor.spawn(name, role, argv, robot)
 
     async def _wait_ready(self, child: Child, mark: str, timeout: float) -> None:
-        await wait_ready(child, mark, timeout, self.stop)
+        await self.supervisor.wait_ready(child, mark, timeout)
+
+    @property
+    def stop(self) -> asyncio.Event:
+        return self.supervisor.stop
 
     async def start_router(self) -> None:
         if self.own_router:
             self.router = self._spawn("router", "router", mstc_argv(
-                "router", "--listen", self.endpoint, "--lease-ms", str(self.args.lease_ms)))
+                "router", "--listen", self.endpoint, "--lease-ms", str(self.settings.lease_ms)))
             await self._wait_ready(self.router, ROUTER_READY, 20.0)
 
     async def start_fleet(self) -> None:
@@ -116,7 +106,7 @@ class Launcher:
                                         ["--cell-size", str(s.cell_size)])
         self.simhw = self._spawn("simhw", "simhw", mstc_argv(
             "simhw", *world, "--robots", starts, "--seed", str(s.seed),
-            "--time-scale", str(s.time_scale), *self._connection(), *self.args.simhw_arg))
+            "--time-scale", str(s.time_scale), *self._connection(), *self.settings.simhw_args))
         await self._wait_ready(self.simhw, SIMHW_READY, 30.0)
         if self.stop.is_set():
             return
@@ -124,51 +114,52 @@ class Launcher:
             self.agents.append(self._spawn(f"agent-{robot}", "agent", mstc_argv(
                 "agent", "--id", str(robot), "--algo", s.algo, *world, "--tree", s.tree,
                 "--seed", str(s.seed), "--robots", str(s.k), "--dead-after",
-                str(self.args.dead_after), *self._connection(), *self.args.agent_arg), robot))
+                str(self.settings.dead_after), *self._connection(),
+                *self.settings.agent_args), robot))
         self.write_fleet()
         self.view.event(f"fleet up: mission {self.mission}, {s.k} agents, world {s.world}, "
                         f"algo {s.algo}, run dir {self.run_dir.path}")
 
     def children(self) -> list[Child]:
-        return [c for c in (self.router, self.simhw, *self.agents) if c is not None]
+        return self.supervisor.children
 
     def write_fleet(self) -> None:
         s = self.setup
-        me = ProcessRecord(name=LAUNCHER, role=LAUNCHER, pid=os.getpid(),
-                           started=start_ticks(os.getpid()))
-        self.run_dir.write_pid(me)
-        self.run_dir.write_fleet(FleetInfo(
+        self.supervisor.write_fleet(FleetInfo(
             mission=self.mission, endpoint=self.endpoint, own_router=self.own_router,
             world=s.world, algo=s.algo, robots=s.k, starts=s.starts,
-            time_scale=s.time_scale, created=time.time(),
-            processes=(me, *(c.record for c in self.children()))))
+            time_scale=s.time_scale, created=time.time(), kind="grid"))
 
     def shutdown(self) -> None:
-        """Stop every child in order: agents, simhw, router (SIGTERM, then SIGKILL)."""
-        for group in (self.agents, [self.simhw], [self.router]):
-            stop_children([c for c in group if c is not None], STOP_GRACE_S)
-        for child in self.children():
-            self.run_dir.remove_pid(child.name)
-        self.run_dir.remove_pid(LAUNCHER)
+        self.supervisor.shutdown()
 
     # --- bus -------------------------------------------------------------------------------
 
     def subscribe(self, bus: Bus) -> None:
-        m, t = self.mission, self.tracker
-        bus.subscribe(keys.all_sim_covers(m), CoverEvent,
-                      lambda _k, ev: self._on_cover(ev), BoundedFifo(65536))
-        bus.subscribe(keys.all_statuses(m), RobotStatus, lambda _k, st: t.on_status(st),
-                      LatestWins())
-        bus.subscribe(keys.all_events(m), RobotEvent, lambda _k, ev: t.on_event(ev))
-        bus.subscribe(keys.all_deaths(m), DeathNotice, self._on_death)
-        bus.subscribe(keys.mission_status(m), MissionStatus, self._on_verdict)
+        """Every message of the mission, in order: all of them feed the model the summary's
+        figures are read from (as a monitor's would), some also the supervision."""
+        bus.subscribe(keys.everything(self.mission), tuple(MESSAGE_TYPES.values()),
+                      self._on_message, BoundedFifo(SUB_BUFFER))
+
+    def _on_message(self, key: str, msg: object) -> None:
+        t = self.tracker
+        t.observe(time.monotonic() - self.t0, key, msg)
+        if isinstance(msg, CoverEvent):
+            self._on_cover(msg)
+        elif isinstance(msg, RobotStatus):
+            t.on_status(msg)
+        elif isinstance(msg, RobotEvent):
+            t.on_event(msg)
+        elif isinstance(msg, DeathNotice):
+            self._on_death(key, msg)
+        elif isinstance(msg, MissionStatus):
+            self._on_verdict(key, msg)
 
     def _on_cover(self, event: CoverEvent) -> None:
         # At time scale 0 a mission lasts about a second: check percent kills per cover, not
         # per tick, so that "2@progress=40" lands near 40 %.
-        if self.tracker.on_cover(event, time.monotonic()) and any(
-                o.percent is not None and self.tracker.coverage >= o.percent
-                for o in self.orders):
+        if self.tracker.on_cover(event, time.monotonic()) and \
+                self.kills.waits_on_coverage(self.tracker.coverage):
             self.wake.set()
 
     def _on_death(self, _key: str, notice: DeathNotice) -> None:
@@ -191,6 +182,7 @@ class Launcher:
 
     async def query_world(self, bus: Bus) -> None:
         for reply in await bus.query(keys.world(self.mission), None, WorldState, timeout=2.0):
+            self.tracker.observe(time.monotonic() - self.t0, reply.key, reply.msg, "query")
             try:
                 self.tracker.on_world(reply.msg, time.monotonic())
             except ValueError as error:
@@ -207,8 +199,8 @@ class Launcher:
                 poller.cancel()
 
     async def watch(self, bus: Bus) -> Outcome:
-        t, args = self.tracker, self.args
-        start_timeout = args.start_timeout or 30.0 + self.setup.k
+        t, s = self.tracker, self.settings
+        start_timeout = s.start_timeout
         started: float | None = None
         complete_at: float | None = None
         initial = t.covered
@@ -216,8 +208,8 @@ class Launcher:
             now = time.monotonic()
             outcome = self._check_children()
             if self.stop.is_set():
-                name = signal.Signals(self.stop_signal or signal.SIGINT).name
-                return Outcome(128 + (self.stop_signal or signal.SIGINT), f"stopped by {name}")
+                sig = self.supervisor.stop_signal or signal.SIGINT
+                return Outcome(128 + sig, f"stopped by {signal.Signals(sig).name}")
             if outcome is None and self.failed_verdict:
                 outcome = Outcome(1, f"an agent declared the mission failed: "
                                      f"{self.failed_verdict}")
@@ -226,7 +218,6 @@ class Launcher:
             if started is None and (t.announced == t.robots or t.covered > initial):
                 started = now
                 t.last_progress = now
-                t.sim_start = 0.0 if self.setup.time_scale == 0 else None
                 self.view.event(f"[{now - self.t0:6.1f}s] mission started: all robots up")
             elif started is None and now - self.t0 > start_timeout:
                 missing = sorted(set(range(t.robots)) - t.heard)
@@ -239,11 +230,11 @@ class Launcher:
                 if complete_at is None:
                     complete_at = now
                     self.view.event(f"[{now - self.t0:6.1f}s] every reachable sub-cell covered")
-                if self._all_settled() or now - complete_at > args.linger:
+                if self._all_settled() or now - complete_at > s.linger:
                     return Outcome(0, "every reachable free sub-cell was covered")
             elif all(c.returncode is not None for c in self.agents):
                 return Outcome(1, "every agent has stopped; " + self._uncovered())
-            elif started is not None and now - t.last_progress > args.stall_timeout:
+            elif started is not None and now - t.last_progress > s.stall_timeout:
                 return Outcome(1, self._stall_diagnosis(now - t.last_progress))
             self._flush_log()
             self.view.update(t, now - self.t0)
@@ -291,19 +282,12 @@ class Launcher:
         return None
 
     async def _run_kills(self, bus: Bus, elapsed: float) -> None:
-        for order in list(self.orders):
-            due = (order.seconds is not None and elapsed >= order.seconds) or (
-                order.percent is not None and self.tracker.coverage >= order.percent)
-            if not due:
-                continue
-            self.orders.remove(order)
+        for order in self.kills.due(elapsed=elapsed, coverage=self.tracker.coverage):
             self.killed_at[order.robot] = time.monotonic()
             if order.hw:
                 await self._fail_body(bus, order.robot)
             else:
-                child = self.agents[order.robot]
-                child.expected_exit = True
-                child.signal(signal.SIGKILL)
+                self.supervisor.kill_agent(order.robot)
                 self.tracker.lose(order.robot, "killed by mstc up (SIGKILL)")
             self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] {order.describe()}: done "
                             f"(coverage {self.tracker.coverage:.1f} %)")
@@ -323,54 +307,35 @@ class Launcher:
         self._logged = len(self.tracker.log)
 
 
-def _install_signals(launcher: Launcher) -> list[int]:
-    loop = asyncio.get_running_loop()
-    handled: list[int] = []
-
-    def on_signal(sig: int) -> None:
-        launcher.stop_signal = sig
-        launcher.stop.set()
-        launcher.wake.set()
-
-    # SIGHUP too: closing the terminal must not orphan the children, which run in their own
-    # process sessions and so never see the terminal's hang-up themselves.
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        with contextlib.suppress(NotImplementedError, RuntimeError):
-            loop.add_signal_handler(sig, on_signal, sig)
-            handled.append(sig)
-    return handled
-
-
-async def launch(setup: MissionSetup, orders: list[KillOrder], endpoint: str, mission: str,
-                 run_dir: Path, args: argparse.Namespace, t0: float) -> int:
+async def launch(setup: MissionSetup, settings: UpSettings, endpoint: str, t0: float) -> int:
     """Run the whole fleet; return the exit code (see deploy.cmd_up)."""
-    rd = RunDir(run_dir).create()
-    view = make_progress(args.plain)
-    launcher = Launcher(setup, orders, endpoint, mission, rd, args, view)
+    mission = settings.mission
+    rd = RunDir(settings.run_dir).create()
+    view = make_progress(settings.plain)
+    launcher = Launcher(setup, settings, endpoint, rd, view)
     launcher.t0 = t0
-    handled = _install_signals(launcher)
-    settings = ConnectionSettings(connect=(endpoint,), mission=mission,
-                                  lease_ms=args.lease_ms)
-    try:
-        await launcher.start_router()
-        async with Bus.connect(settings) as bus:
-            launcher.subscribe(bus)
-            await launcher.start_fleet()
-            outcome = await launcher.supervise(bus) if not launcher.stop.is_set() else \
-                Outcome(128 + (launcher.stop_signal or 2), "stopped during start-up")
-            await launcher.query_world(bus)
-        summary = summarize(launcher.tracker, mission=mission, world=setup.world,
-                            algo=setup.algo, wall_seconds=time.monotonic() - t0,
-                            planned_makespan=setup.planned_makespan, outcome=outcome.message)
-        view.close()
-        print(format_summary(summary), flush=True)
-        rd.write_summary(summary.to_json())
-        if outcome.code == 0 and not summary.complete:
-            return 1
-        return outcome.code
-    finally:
-        view.close()
-        launcher.shutdown()
-        loop = asyncio.get_running_loop()
-        for sig in handled:
-            loop.remove_signal_handler(sig)
+    connection = ConnectionSettings(connect=(endpoint,), mission=mission,
+                                    lease_ms=settings.lease_ms)
+    with launcher.supervisor.signals_stop():
+        try:
+            await launcher.start_router()
+            async with Bus.connect(connection) as bus:
+                launcher.subscribe(bus)
+                await launcher.start_fleet()
+                outcome = await launcher.supervise(bus) if not launcher.stop.is_set() else \
+                    Outcome(128 + (launcher.supervisor.stop_signal or 2),
+                            "stopped during start-up")
+                await launcher.query_world(bus)
+            summary = summarize(launcher.tracker, mission=mission, world=setup.world,
+                                algo=setup.algo, wall_seconds=time.monotonic() - t0,
+                                planned_makespan=setup.planned_makespan,
+                                outcome=outcome.message)
+            view.close()
+            print(format_summary(summary), flush=True)
+            rd.write_summary(summary.to_json())
+            if outcome.code == 0 and not summary.complete:
+                return 1
+            return outcome.code
+        finally:
+            view.close()
+            launcher.shutdown()

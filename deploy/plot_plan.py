@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from deploy.cli import UsageError
+from deploy.errors import UsageError
 from planner.types import OccupancyGrid, Plan
 
 

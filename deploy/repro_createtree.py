@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from deploy.errors import UsageError
 from planner.allocation import allocate
 from planner.createtree import MEASURES, create_tree
 from planner.cycle import stc_cycle
@@ -58,7 +59,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def parse_counts(text: str) -> list[int]:
     """'3-30', '3-30/3' or '3,10,30' -> the list of counts."""
-    from deploy.cli import UsageError
 
     try:
         if "-" in text:
@@ -220,7 +220,6 @@ def _plot_main(main: list[Row], axes: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from deploy.cli import UsageError
 
     if args.inputs < 1:
         raise UsageError("--inputs must be at least 1")

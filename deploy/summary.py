@@ -4,6 +4,11 @@ Ground truth comes from simhw (CoverEvents live, the WorldState query as the aut
 publication can be dropped, a query answer cannot be partly lost); the agents' statuses,
 events and death notices say who finished, who died and who took over. Nothing here does
 I/O or reads a clock: times are passed in, so the tracker is tested with plain values.
+
+The tracker decides when the launcher stops (coverage of the map it loaded, robots lost);
+the figures of the summary (makespan, simulated seconds, revisits) are read off the
+monitor's FleetModel, fed with every message the launcher hears, by
+deploy.monitor.figures: the same function ``mstc report`` and ``mstc monitor`` use.
 """
 
 from __future__ import annotations
@@ -22,31 +27,17 @@ from bus.messages import (
     world_free,
     world_visits,
 )
-from planner.grid import coarsen, expand, label_components
-from planner.types import BoolArray, OccupancyGrid, SubCell
-
-
-def reachable_sub_cells(grid: OccupancyGrid, starts: tuple[SubCell, ...]) -> BoolArray:
-    """Sub-cells of the free cells connected to some robot's start: what STC can cover.
-
-    A sub-cell of a partly blocked cell is not reachable (a cell is free only if all four
-    of its sub-cells are), and neither is a component no robot starts in.
-    """
-    coarse = coarsen(grid)
-    labels, _ = label_components(coarse.free)
-    h, w = labels.shape
-    wanted = {int(labels[r // 2, c // 2]) for r, c in starts if r // 2 < h and c // 2 < w}
-    wanted.discard(0)
-    cells = np.isin(labels, sorted(wanted))
-    out = np.zeros(grid.shape, dtype=bool)
-    mask = expand(cells)
-    out[: mask.shape[0], : mask.shape[1]] = mask
-    return out
+from deploy.monitor.figures import mission_figures
+from deploy.monitor.model import FleetModel
+from deploy.monitor.types import Record, Via
+from planner.types import BoolArray, SubCell
 
 
 @dataclass
-class RobotView:
-    """What the launcher knows about one robot."""
+class SupervisedRobot:
+    """What the launcher needs about one robot to decide on the mission: its state, whether
+    it is lost (and why) or completed. The robot as the wire shows it in full is
+    deploy.monitor.robots.RobotView, in the tracker's model."""
 
     robot: int
     state: str = "starting"
@@ -66,7 +57,7 @@ class MissionSummary:
     complete: bool
     makespan_moves: int
     total_moves: int
-    revisited: int
+    revisited: int  # visits beyond the first, over all sub-cells (the report's "revisits")
     sim_seconds: float
     wall_seconds: float
     robots_lost: tuple[tuple[int, str], ...]
@@ -99,17 +90,22 @@ class MissionTracker:
     reachable: BoolArray
     robots: int
     visits: np.ndarray = field(init=False)
-    views: list[RobotView] = field(init=False)
+    views: list[SupervisedRobot] = field(init=False)
     last_progress: float = 0.0
-    sim_start: float | None = None
-    sim_last: float = 0.0
     takeovers: set[tuple[int, int | None]] = field(default_factory=set)
     heard: set[int] = field(default_factory=set)  # robots whose status was received
     log: list[str] = field(default_factory=list)
+    model: FleetModel = field(init=False)  # the figures' source, as in mstc monitor / report
 
     def __post_init__(self) -> None:
         self.visits = np.zeros(self.reachable.shape, dtype=np.int64)
-        self.views = [RobotView(r) for r in range(self.robots)]
+        self.views = [SupervisedRobot(r) for r in range(self.robots)]
+        self.model = FleetModel(max_events=100)
+
+    def observe(self, t: float, key: str, msg: object, via: Via = "sub") -> None:
+        """Hand a received message to the model the summary's figures are read from (``t``:
+        seconds since the launcher started)."""
+        self.model.apply(Record(t, key, msg, via))
 
     # --- coverage ------------------------------------------------------------------------
 
@@ -140,7 +136,6 @@ class MissionTracker:
             return False
         new = self.visits[r, c] == 0 and bool(self.reachable[r, c])
         self.visits[r, c] = max(int(self.visits[r, c]), event.visits)
-        self.sim_last = max(self.sim_last, event.sim_time)
         if new:
             self.last_progress = now
         return bool(new)
@@ -159,8 +154,6 @@ class MissionTracker:
                 view.moves = max(0, truth.covered - 1)
                 if truth.failed and not view.lost:
                     self.lose(truth.robot, "body failed in simhw")
-        if self.sim_start is None:
-            self.sim_start = state.sim_time
         grew = self.covered > before
         if grew:
             self.last_progress = now
@@ -220,14 +213,12 @@ class MissionTracker:
 def summarize(tracker: MissionTracker, *, mission: str, world: str, algo: str,
               wall_seconds: float, planned_makespan: int | None, outcome: str) -> MissionSummary:
     views = tracker.views
-    moves = [v.moves for v in views]
-    sim_start = tracker.sim_start or 0.0
+    figures = mission_figures(tracker.model)
     return MissionSummary(
         mission=mission, world=world, algo=algo, robots=tracker.robots,
         reachable=tracker.total, covered=tracker.covered, complete=tracker.complete,
-        makespan_moves=max(moves, default=0), total_moves=sum(moves),
-        revisited=int(((tracker.visits > 1) & tracker.reachable).sum()),
-        sim_seconds=max(0.0, tracker.sim_last - sim_start), wall_seconds=wall_seconds,
+        makespan_moves=figures.makespan_moves, total_moves=figures.total_moves,
+        revisited=figures.revisits, sim_seconds=figures.sim_seconds, wall_seconds=wall_seconds,
         robots_lost=tuple((v.robot, v.lost) for v in views if v.lost),
         takeovers=len(tracker.takeovers), planned_makespan=planned_makespan, outcome=outcome)
 
@@ -242,7 +233,7 @@ def format_summary(s: MissionSummary) -> str:
         f"  world {s.world}, algo {s.algo}, {s.robots} robots",
         f"  coverage    {s.coverage:.1f} % ({s.covered} / {s.reachable} reachable sub-cells)",
         f"  makespan    {s.makespan_moves} moves{plan}, {s.sim_seconds:.1f} simulated s "
-        f"({s.total_moves} moves in all, {s.revisited} sub-cells revisited)",
+        f"({s.total_moves} moves in all, {s.revisited} revisits)",
         f"  robots lost {len(s.robots_lost)}: {lost}",
         f"  takeovers   {s.takeovers}",
         f"  wall time   {s.wall_seconds:.1f} s",

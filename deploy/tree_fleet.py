@@ -1,17 +1,20 @@
 """The launcher behind ``mstc tree-fleet``: router, radio and K tree agents on loopback.
 
-Processes are started with deploy.fleet's helpers (their own sessions, logs in the run
-directory) in the order router, launcher's bus session (so no report is missed), radio, agents;
-the launcher then watches every outbox through a TeamObserver and the agents' exit codes until
-all agents are done, one fails, or nothing moves for ``stall_timeout`` seconds. Whatever ended
-the run, children are stopped agents first, then the radio, then the router.
+Processes are started by a deploy.supervisor.Supervisor (their own sessions, logs and PID
+files in the run directory, fleet.json for mstc kill / down / monitor) in the order router,
+launcher's bus session (so no report is missed), radio, agents; the launcher then watches every
+outbox through a TeamObserver and the agents' exit codes until all agents are done, one fails,
+or nothing moves for ``stall_timeout`` seconds. Whatever ended the run, the supervisor stops
+the agents first, then the radio, then the router.
+
+An agent killed by a signal from outside (``mstc kill``) is a fail-stop robot like one of
+``--kill``: the survivors repair the trail, and the run is judged against the lockstep run
+with the same deaths.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
-import signal
 import socket
 import time
 from collections.abc import Callable
@@ -21,15 +24,17 @@ from pathlib import Path
 from bus import keys
 from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
+from bus.messages import MissionStatus
 from bus.router import READY_MARK as ROUTER_READY
 from bus.tree_messages import RadioStats, TreeReport
-from deploy.fleet import Child, RunDir, mstc_argv, stop_children, wait_ready
+from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
+from deploy.settings import KillOrder
+from deploy.supervisor import KillSchedule, Supervisor
 from deploy.tree_observer import ObservedRun, TeamObserver
 from planner.treecover.trees import tree_from_spec
 from simhw.radio import READY_MARK as RADIO_READY
 
 TICK_S = 0.1
-STOP_GRACE_S = 5.0
 SETTLE_S = 2.0
 
 
@@ -46,7 +51,7 @@ class TreeFleetOptions:
     stall_timeout: float = 30.0
     dead_after: float = 5.0
     settle: float = 1.0  # how long a dead robot's last report may still be on its way
-    kills: tuple[tuple[int, int], ...] = ()  # (robot, step): SIGKILL its agent at that step
+    kills: tuple[KillOrder, ...] = ()  # by step: SIGKILL the agent once that step is complete
 
 
 @dataclass(frozen=True)
@@ -74,6 +79,8 @@ class TreeFleet:
         self.say = say
         self.endpoint = options.endpoint or free_endpoint()
         self.run_dir = RunDir(options.run_dir).create()
+        self.supervisor = Supervisor(self.run_dir)
+        self.kills = KillSchedule(options.kills)
         self.observer = TeamObserver(tree_from_spec(options.tree), options.robots)
         self.router: Child | None = None
         self.radio: Child | None = None
@@ -81,60 +88,45 @@ class TreeFleet:
         self.killed: list[str] = []
         self.t0 = time.monotonic()
         self.first_report: float | None = None
-        self.stopped_by: str | None = None  # the signal that asked us to stop
         self.covered_at: float | None = None
 
     def _spawn(self, name: str, role: str, argv: list[str], robot: int | None = None) -> Child:
-        child = Child(name, role, argv, self.run_dir.log_path(name), robot)
-        self.run_dir.write_pid(child.record)
-        return child
+        return self.supervisor.spawn(name, role, argv, robot)
 
     def _connection(self) -> list[str]:
         o = self.options
         return ["--connect", self.endpoint, "--mission", o.mission, "--lease-ms",
                 str(o.lease_ms)]
 
-    def _install_signals(self) -> list[int]:
-        # the children run in their own sessions: a terminal's Ctrl-C or hang-up reaches only
-        # us, and we must stop them rather than die and orphan them
-        loop = asyncio.get_running_loop()
-        handled: list[int] = []
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-            with contextlib.suppress(NotImplementedError, RuntimeError):
-                loop.add_signal_handler(sig, self._stop_on, sig)
-                handled.append(sig)
-        return handled
-
-    def _stop_on(self, sig: int) -> None:
-        self.stopped_by = signal.Signals(sig).name
-
     async def run(self) -> TreeFleetOutcome:
         o = self.options
-        handled = self._install_signals()
-        try:
-            self.router = self._spawn("router", "router", mstc_argv(
-                "router", "--listen", self.endpoint, "--lease-ms", str(o.lease_ms),
-                "--exit-with-parent"))
-            await wait_ready(self.router, ROUTER_READY, 20.0)
-            settings = ConnectionSettings(connect=(self.endpoint,), mission=o.mission,
-                                          lease_ms=o.lease_ms)
-            async with Bus.connect(settings) as bus:
-                bus.subscribe(keys.all_tree_outboxes(o.mission), TreeReport,
-                              lambda _k, r: self._on_transmission(r),
-                              BoundedFifo(1 << 20))
-                await self._start(o)
-                ok, message = await self._watch()
-                replies = await bus.query(keys.tree_radio(o.mission), None, RadioStats,
-                                          timeout=2.0)
-            radio = replies[0].msg if replies else None
-            mission = None if self.covered_at is None or self.first_report is None else \
-                self.covered_at - self.first_report
-            return TreeFleetOutcome(ok, message, self.observer.run(), radio,
-                                    time.monotonic() - self.t0, mission)
-        finally:
-            self.shutdown()
-            for sig in handled:
-                asyncio.get_running_loop().remove_signal_handler(sig)
+        with self.supervisor.signals_stop():
+            try:
+                return await self._run(o)
+            finally:
+                self.supervisor.shutdown()
+
+    async def _run(self, o: TreeFleetOptions) -> TreeFleetOutcome:
+        self.router = self._spawn("router", "router", mstc_argv(
+            "router", "--listen", self.endpoint, "--lease-ms", str(o.lease_ms),
+            "--exit-with-parent"))
+        await self.supervisor.wait_ready(self.router, ROUTER_READY, 20.0)
+        settings = ConnectionSettings(connect=(self.endpoint,), mission=o.mission,
+                                      lease_ms=o.lease_ms)
+        async with Bus.connect(settings) as bus:
+            bus.subscribe(keys.all_tree_outboxes(o.mission), TreeReport,
+                          lambda _k, r: self._on_transmission(r),
+                          BoundedFifo(1 << 20))
+            await self._start(o)
+            ok, message = await self._watch(lambda: self._announce(bus))
+            self._announce(bus)  # once more: a short run may end before a recorder joined
+            replies = await bus.query(keys.tree_radio(o.mission), None, RadioStats,
+                                      timeout=2.0)
+        radio = replies[0].msg if replies else None
+        mission = None if self.covered_at is None or self.first_report is None else \
+            self.covered_at - self.first_report
+        return TreeFleetOutcome(ok, message, self.observer.run(), radio,
+                                time.monotonic() - self.t0, mission)
 
     def _on_transmission(self, report: TreeReport) -> None:
         now = time.monotonic()
@@ -148,23 +140,34 @@ class TreeFleet:
         common = ["--tree", o.tree, "--robots", str(o.robots)]
         self.radio = self._spawn("radio", "radio", mstc_argv("radio", *common,
                                                              *self._connection()))
-        await wait_ready(self.radio, RADIO_READY, 20.0)
+        await self.supervisor.wait_ready(self.radio, RADIO_READY, 20.0)
         for robot in range(o.robots):
             self.agents.append(self._spawn(f"agent-{robot}", "agent", mstc_argv(
                 "tree-agent", "--id", str(robot), *common, "--algo", o.algo,
                 "--step-timeout", str(o.step_timeout), "--dead-after", str(o.dead_after),
                 "--settle", str(o.settle), *self._connection()), robot))
+        self.supervisor.write_fleet(FleetInfo(
+            mission=o.mission, endpoint=self.endpoint, own_router=True, world=o.tree,
+            algo=o.algo, robots=o.robots, starts=(), time_scale=0.0, created=time.time(),
+            kind="tree"))
         self.say(f"fleet up: mission {o.mission} on {self.endpoint}, radio and {o.robots} "
                  f"agents ({o.algo}), run dir {self.run_dir.path}")
 
-    async def _watch(self) -> tuple[bool, str]:
+    def _announce(self, bus: Bus) -> None:
+        """The mission's set-up as its status, repeated: a recording or a monitor that joins
+        late learns which tree the robots cover (``mstc report`` judges the run with it)."""
+        o = self.options
+        bus.publish(keys.mission_status(o.mission), MissionStatus(
+            "running", "tree coverage", {"tree": o.tree, "algo": o.algo, "robots": o.robots}))
+
+    async def _watch(self, announce: Callable[[], None]) -> tuple[bool, str]:
         """Until every agent has ended, something failed, or no step completes for long."""
         o, seen = self.options, self.observer
         last_step, last_change, last_print = -1, time.monotonic(), 0.0
         while True:
             now = time.monotonic()
-            if self.stopped_by is not None:
-                return False, f"stopped by {self.stopped_by}"
+            if self.supervisor.stopped_by is not None:
+                return False, f"stopped by {self.supervisor.stopped_by}"
             self._maybe_kill()
             failure = self._failed_child()
             if failure is not None:
@@ -179,6 +182,7 @@ class TreeFleet:
                                f"{last_step}); agent logs in {self.run_dir.logs}")
             if now - last_print >= 1.0:
                 last_print = now
+                announce()
                 self.say(f"[{now - self.t0:6.1f}s] step {max(last_step, 0)}: visited "
                          f"{seen.visited}/{len(seen.seen)} nodes, "
                          f"{seen.transmissions} transmissions")
@@ -187,9 +191,14 @@ class TreeFleet:
     def _failed_child(self) -> str | None:
         """Why the run failed, if the router or radio ended or an agent we did not kill
         failed (the survivors of a kill repair the trail and carry on)."""
-        for child in (self.router, self.radio, *self.agents):
-            code = None if child is None else child.returncode
-            if child is None or code is None:
+        for child in self.supervisor.children:
+            code = child.returncode
+            if code is None:
+                continue
+            if child.role == "agent" and code < 0 and not child.expected_exit:
+                child.expected_exit = True  # killed from outside, e.g. by mstc kill
+                self.killed.append(f"robot {child.robot} killed by signal {-code}")
+                self.say(f"[{time.monotonic() - self.t0:6.1f}s] {self.killed[-1]}")
                 continue
             if child.role != "agent" or (code != 0 and not child.expected_exit):
                 return (f"{child.name} exited with code {code}; last lines of {child.log}:\n"
@@ -197,13 +206,9 @@ class TreeFleet:
         return None
 
     def _maybe_kill(self) -> None:
-        for robot, step in self.options.kills:
-            victim = self.agents[robot]
-            if victim.expected_exit or self.observer.complete < step:
-                continue
-            victim.expected_exit = True
-            victim.signal(signal.SIGKILL)
-            self.killed.append(f"robot {robot} killed (SIGKILL) after step "
+        for order in self.kills.due(step=self.observer.complete):
+            self.supervisor.kill_agent(order.robot)
+            self.killed.append(f"robot {order.robot} killed (SIGKILL) after step "
                                f"{self.observer.complete}")
             self.say(f"[{time.monotonic() - self.t0:6.1f}s] {self.killed[-1]}")
 
@@ -214,11 +219,3 @@ class TreeFleet:
         while self.observer.coverage_time is None and time.monotonic() < deadline:
             await asyncio.sleep(TICK_S)
             self.observer.finish(killed)
-
-    def shutdown(self) -> None:
-        """Stop the agents, then the radio, then the router."""
-        for group in (self.agents, [self.radio], [self.router]):
-            stop_children([c for c in group if c is not None], STOP_GRACE_S)
-        for child in (*self.agents, self.radio, self.router):
-            if child is not None:
-                self.run_dir.remove_pid(child.name)

@@ -51,7 +51,7 @@ def test_opt_never_worse_than_nb_from_the_cli(capsys: pytest.CaptureFixture[str]
 
 
 def test_speeds_shift_work_to_the_fast_robot(capsys: pytest.CaptureFixture[str]) -> None:
-    plan = run_json(capsys, "--map", "open-room", "--robots", "0,0;10,10", "--algo", "opt",
+    plan = run_json(capsys, "--map", "open-room", "--starts", "0,0;10,10", "--algo", "opt",
                     "--speeds", "1,3")
     slow, fast = plan["robots"]
     assert fast["steps"] > slow["steps"]
@@ -60,12 +60,12 @@ def test_speeds_shift_work_to_the_fast_robot(capsys: pytest.CaptureFixture[str])
 
 
 @pytest.mark.parametrize(("argv", "needle"), [
-    (["--map", "nowhere", "--robots", "0,0"], "builtin worlds"),
-    (["--map", "example", "--robots", "0,0;0,0"], "both start at (0, 0)"),
-    (["--map", "example", "--robots", "0;1"], "expected 'row,col'"),
-    (["--map", "example", "--robots", "999,0"], "outside"),
-    (["--map", "example", "--robots", "0,0", "--algo", "nb", "--speeds", "2"], "--algo opt"),
-    (["--map", "example", "--robots", "0,0;0,2", "--fuel", "3,3"], "fuel"),
+    (["--map", "nowhere", "--starts", "0,0"], "builtin worlds"),
+    (["--map", "example", "--starts", "0,0;0,0"], "both start at (0, 0)"),
+    (["--map", "example", "--starts", "0;1"], "expected 'row,col'"),
+    (["--map", "example", "--starts", "999,0"], "outside"),
+    (["--map", "example", "--starts", "0,0", "--algo", "nb", "--speeds", "2"], "--algo opt"),
+    (["--map", "example", "--starts", "0,0;0,2", "--fuel", "3,3"], "fuel"),
 ])
 def test_user_mistakes_are_one_line(capsys: pytest.CaptureFixture[str], argv: list[str],
                                     needle: str) -> None:
@@ -137,3 +137,21 @@ def test_balanced_plan_reaches_the_bound_on_an_open_grid(
     covered = {tuple(p) for r in plan["robots"] for p in r["path"]}
     assert covered == {tuple(map(int, p)) for p in np.argwhere(area.sub_cells)}
     assert plan["makespan"] <= plan["lower_bound"] + 2
+
+
+def test_plan_spellings_world_map_robots_starts_agree(capsys: pytest.CaptureFixture[str]) -> None:
+    """--world and --map name one option; --robots K (and -n K, and the old --random-robots K)
+    is a count; start positions are --starts, and the old --robots 'R,C;...' still works with
+    a deprecation warning."""
+    base = run_json(capsys, "--map", "example", "--random-robots", "3", "--seed", "5")
+    for spelling in (["--world", "example", "--robots", "3"], ["--map", "example", "-n", "3"]):
+        assert run_json(capsys, *spelling, "--seed", "5") == base
+    starts = ";".join(f"{r['start'][0]},{r['start'][1]}" for r in base["robots"])
+    assert run_json(capsys, "--world", "example", "--starts", starts, "--seed", "5") == base
+    assert main(["plan", "--world", "example", "--robots", starts, "--seed", "5",
+                 "--json"]) == 0
+    done = capsys.readouterr()
+    assert json.loads(done.out) == base
+    assert "deprecated, use --starts" in done.err
+    assert main(["plan", "--world", "example", "--robots", "0"]) == 2
+    assert "at least 1 robot" in capsys.readouterr().err

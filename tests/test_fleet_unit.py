@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from agent.offline.plan import compute_plan, plan_digest
-from bus import argtypes
+from bus import argtypes, keys
 from bus.messages import (
     CoverEvent,
     DeathNotice,
@@ -30,9 +30,9 @@ from bus.messages import (
     make_world_state,
 )
 from deploy import cmd_down, cmd_kill, cmd_up
-from deploy.cmd_up import KillOrder, liveness_defaults, parse_kill, stall_timeout
+from deploy.cli import main as cli_main
+from deploy.errors import FleetError
 from deploy.fleet import (
-    FleetError,
     FleetInfo,
     ProcessRecord,
     RunDir,
@@ -41,8 +41,10 @@ from deploy.fleet import (
     latest_run_dir,
     start_ticks,
 )
+from deploy.monitor.coverage import reachable_sub_cells
 from deploy.progress import PlainProgress
-from deploy.summary import MissionTracker, format_summary, reachable_sub_cells, summarize
+from deploy.settings import KillOrder, MissionSetup, liveness, parse_kill, stall_timeout
+from deploy.summary import MissionTracker, format_summary, summarize
 from planner.types import OccupancyGrid
 
 # --- kill orders ----------------------------------------------------------------------------
@@ -73,9 +75,10 @@ def test_parse_kill_rejects_malformed(text: str) -> None:
 ])
 def test_up_rejects_mistakes_in_one_line_before_starting(tmp_path: Path, extra: list[str],
                                                         message: str) -> None:
-    main = "import sys; from deploy.cli import main; sys.exit(main())"
+    # run as `python -m deploy.cli`: the entry module is then __main__, a second copy of it,
+    # and the commands' errors must still be printed as one line
     result = subprocess.run(
-        [sys.executable, "-c", main, "up", "-n", "2", "--world", "open-room",
+        [sys.executable, "-m", "deploy.cli", "up", "-n", "2", "--world", "open-room",
          "--run-dir", str(tmp_path / "run"), *extra],
         capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
@@ -122,7 +125,7 @@ def test_up_plans_paper_trees_from_the_robots_starts() -> None:
     cmd_up.add_arguments(parser)
     args = parser.parse_args(["-n", "3", "--world", "open-room", "--tree", "createtree",
                               "--seed", "2"])
-    setup = cmd_up.MissionSetup.from_args(args)
+    setup = MissionSetup.plan(cmd_up.up_settings(args))
     agents = compute_plan(setup.grid, setup.starts, "opt", "createtree", 2)
     assert setup.planned_makespan == agents.makespan
     assert plan_digest(agents) != plan_digest(
@@ -131,7 +134,7 @@ def test_up_plans_paper_trees_from_the_robots_starts() -> None:
 
 def test_default_stall_timeout_allows_100_moves_of_wall_time() -> None:
     def timeout(scale: float, given: float | None = None) -> float:
-        return stall_timeout(argparse.Namespace(time_scale=scale, stall_timeout=given))
+        return stall_timeout(scale, given)
 
     assert timeout(0.0) == timeout(float("inf")) == 20.0
     assert timeout(1.0) == pytest.approx(20.0 + 100 * 2.5)
@@ -140,11 +143,9 @@ def test_default_stall_timeout_allows_100_moves_of_wall_time() -> None:
 
 
 def test_crowded_fleets_get_long_liveness_timers_unless_told() -> None:
-    def settings(robots: int, cores: int, **given: float) -> tuple[float, float]:
-        args = argparse.Namespace(**{"robots": robots, "lease_ms": None, "dead_after": None,
-                                     **given})
-        liveness_defaults(args, cores)
-        return args.lease_ms, args.dead_after
+    def settings(robots: int, cores: int, lease_ms: int | None = None,
+                 dead_after: float | None = None) -> tuple[float, float]:
+        return liveness(robots, lease_ms, dead_after, cores)
 
     assert settings(12, 2) == (1000, 3.0)
     assert settings(13, 2) == (5000, 5.0)
@@ -234,6 +235,7 @@ def test_world_state_is_the_authority_for_moves_and_failed_bodies() -> None:
     robots = (RobotTruth(0, (0, 0, 1), True, False, False, covered=6),
               RobotTruth(1, (1, 3, 0), False, False, True, covered=4))
     state = make_world_state("open", grid.free, visits, robots, 12.0, 0.0)
+    tracker.observe(1.0, keys.world("m"), state, "query")  # as the launcher does
     assert tracker.on_world(state, now=1.0)
     assert tracker.covered == 8
     assert [v.moves for v in tracker.views] == [5, 3]
@@ -360,7 +362,8 @@ def test_kill_and_down_on_stand_in_processes(tmp_path: Path,
         args = argparse.Namespace(robot=1, hw=False, run_dir=tmp_path)
         assert cmd_kill.run(args) == 0
         assert agent1.wait(10) == -signal.SIGKILL
-        assert cmd_kill.run(args) == 2  # already gone: a one-line error
+        # already gone: a one-line error from the dispatcher
+        assert cli_main(["kill", "1", "--run-dir", str(tmp_path)]) == 2
         assert "not running" in capsys.readouterr().err
         assert cmd_down.run(argparse.Namespace(run_dir=tmp_path, timeout=1.0)) == 0
         assert agent0.wait(10) == -signal.SIGTERM

@@ -21,7 +21,7 @@ from planner.maps import resolve_world
 pytestmark = pytest.mark.integration
 
 WORLD = "open-room"
-MAIN = "import sys; from deploy.cli import main; sys.exit(main())"
+MAIN = ("-m", "deploy.cli")
 # Generous guards against a hung test on a loaded machine; not timing assertions.
 RUN_LIMIT = 120.0
 # CPU-starved agents on a busy 2-core machine can miss 1 s heartbeats and be falsely declared
@@ -30,7 +30,7 @@ TOLERANT = ("--lease-ms", "5000", "--dead-after", "5")
 
 
 def up_argv(port: int, run_dir: Path, *extra: str, robots: int = 4) -> list[str]:
-    return [sys.executable, "-c", MAIN, "up", "-n", str(robots), "--world", WORLD,
+    return [sys.executable, *MAIN, "up", "-n", str(robots), "--world", WORLD,
             "--algo", "opt", "--plain", "--listen", f"tcp/127.0.0.1:{port}",
             "--run-dir", str(run_dir), "--stall-timeout", "30", *TOLERANT, *extra]
 
@@ -109,7 +109,7 @@ def test_second_fleet_on_same_port_fails_then_down_stops_first(free_port: int,
         assert len(second.stderr.strip().splitlines()) == 1
         assert not (tmp_path / "second").exists()
         assert first.poll() is None  # the first fleet is untouched
-        down = subprocess.run([sys.executable, "-c", MAIN, "down", "--run-dir",
+        down = subprocess.run([sys.executable, *MAIN, "down", "--run-dir",
                                str(tmp_path / "first")], capture_output=True, text=True,
                               timeout=RUN_LIMIT)
         assert down.returncode == 0, down.stderr

@@ -32,10 +32,10 @@ from bus.messages import (
     world_visits,
 )
 from deploy.monitor.app import PlainScreen, Watcher, watch_live
+from deploy.monitor.coverage import reachable_sub_cells
 from deploy.monitor.plain import PlainPrinter
 from deploy.monitor.recorder import read_recording
 from deploy.monitor.report import build_report
-from deploy.summary import reachable_sub_cells
 from planner.grid import work_area
 from planner.maps import resolve_world
 from planner.offline.plan import make_plan

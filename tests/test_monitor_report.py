@@ -12,7 +12,7 @@ from test_monitor_fixtures import M, open_room, run_mission, snake, two_robot_wa
 from bus.messages import SCHEMA_VERSION
 from deploy.cli import main
 from deploy.monitor.recorder import RecordWriter
-from deploy.monitor.report import build_report
+from deploy.monitor.report import build_report, format_report
 from deploy.monitor.types import Header, Record, Recording
 
 HEADER = Header(M, 0.0, "test", SCHEMA_VERSION)
@@ -39,6 +39,7 @@ def test_figures_of_a_clean_run() -> None:
     assert report.robots[0].messages_per_move == pytest.approx(32 / 15, abs=1e-3)
     assert report.ok and set(statuses(report).values()) == {"ok"}
     assert report.curve[-1][2] == 32 and len(report.curve) == 32
+    assert format_report(report).splitlines()[-1] == "verdict: ok (no invariant failed)"
 
 
 def test_backtracking_revisits_by_the_same_robot_are_allowed() -> None:
@@ -62,6 +63,7 @@ def test_a_cell_covered_by_two_robots_fails_the_redundancy_invariant(algo: str,
     assert [i.name.split(" (")[0] for i in failed] == [name]
     assert "(3, 3) by robots [0, 1]" in failed[0].detail
     assert dict(report.revisited_cells) == {(3, 3): (0, 1)}
+    assert format_report(report).splitlines()[-1] == f"verdict: FAILED ({failed[0].name})"
 
 
 def test_three_visits_fail_backtracking() -> None:

@@ -45,6 +45,10 @@ def test_up_records_a_mission_the_report_verifies(tmp_path: Path) -> None:
     assert data["covered"] == summary["covered"] == summary["reachable"]
     assert max(r["moves"] for r in data["robots"]) == summary["makespan_moves"]
     assert sum(r["moves"] for r in data["robots"]) == summary["total_moves"]
+    # one definition of the figures (deploy.monitor.figures) for the summary and the report
+    assert data["coverage_moves"] == summary["makespan_moves"]
+    assert data["coverage_sim_seconds"] == summary["sim_seconds"]
+    assert data["revisits"] == summary["revisited"]
 
 
 # 4 x 6 cells with a one-cell pillar (ORMSTC obstacles fill whole cells, docs/ormstc.md).

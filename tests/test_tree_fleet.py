@@ -5,6 +5,7 @@ trail repair after ``--kill`` against the lockstep run with the same failures.""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import re
 import subprocess
@@ -18,6 +19,7 @@ from fleet_helpers import mission_bus, mstc, stop_processes
 from bus import keys
 from bus.bridge import Bus
 from bus.tree_messages import RadioStats, TreeReport
+from deploy.fleet import ProcessRecord, is_running
 from planner.treecover.failures import run_with_failures
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import tree_from_spec
@@ -178,3 +180,68 @@ def test_two_killed_robots_are_removed_and_the_survivors_finish(tmp_path: Path) 
     assert summary["coverage_time"] == lockstep.result.time
     assert summary["visited"] == 40 and summary["connected_every_step"] is True
     assert summary["verdict"] == "ok"
+
+
+def _fleet_json(run_dir: Path, proc: subprocess.Popen[str]) -> dict[str, Any]:
+    """fleet.json of a tree fleet once every agent is in it (the launcher writes it then)."""
+    deadline = time.monotonic() + RUN_LIMIT
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, "the fleet ended before its fleet.json was written"
+        with contextlib.suppress(FileNotFoundError, json.JSONDecodeError):
+            info: dict[str, Any] = json.loads((run_dir / "fleet.json").read_text())
+            return info
+        time.sleep(0.05)
+    raise AssertionError(f"no fleet.json within {RUN_LIMIT} s")
+
+
+def test_mstc_kill_and_down_act_on_a_tree_fleet(tmp_path: Path) -> None:
+    """A tree mission's run directory is a fleet like `mstc up`'s: `mstc kill` removes a robot
+    (the survivors finish, judged against the lockstep run with that death), `mstc down` stops
+    a second fleet in order, and --record writes a recording of the mission."""
+    spec, robots, record = "perfect:N=2,H=9", 4, tmp_path / "tree.jsonl"
+    run_dir = tmp_path / "run"
+    fleet = start("tree-fleet", "--tree", spec, "--robots", str(robots), "--run-dir",
+                  str(run_dir), "--record", str(record))
+    second = None
+    try:
+        info = _fleet_json(run_dir, fleet)
+        assert info["kind"] == "tree" and info["robots"] == robots and info["world"] == spec
+        assert {p["role"] for p in info["processes"]} == {"up", "router", "radio", "agent"}
+        # a robot killed before the first step is complete has never reported: wait for one
+        assert fleet.stdout is not None
+        while not re.search(r"step [1-9]", fleet.stdout.readline() or "step 1"):
+            pass
+        killed = subprocess.run(mstc("kill", "2", "--run-dir", str(run_dir)),
+                                capture_output=True, text=True, timeout=RUN_LIMIT)
+        assert killed.returncode == 0, killed.stderr
+        refused = subprocess.run(mstc("kill", "1", "--hw", "--run-dir", str(run_dir)),
+                                 capture_output=True, text=True, timeout=RUN_LIMIT)
+        assert refused.returncode == 2 and "no simulated bodies" in refused.stderr
+        out, _ = fleet.communicate(timeout=RUN_LIMIT * 2)
+        assert fleet.returncode == 0, out
+        assert re.search(r"verdict: ok$", out, re.MULTILINE), out
+        assert re.search(r"deaths: \{'2': \d+\}", out), out
+        # the recording alone gives the launcher's verdict and figures
+        report = subprocess.run(mstc("report", str(record), "--json"), capture_output=True,
+                                text=True, timeout=RUN_LIMIT)
+        assert report.returncode == 0, report.stdout + report.stderr
+        judged = json.loads(report.stdout)
+        assert judged["verdict"] == "ok" and "2" in judged["deaths"]
+        assert re.search(rf"coverage_time: {judged['coverage_time']}$", out, re.MULTILINE)
+        assert re.search(rf"deaths: \{{'2': {judged['deaths']['2']}\}}", out), out
+
+        second_dir = tmp_path / "second"
+        second = subprocess.Popen(
+            mstc("tree-fleet", "--tree", spec, "--robots", str(robots), "--run-dir",
+                 str(second_dir), "--json"),
+            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        records = _fleet_json(second_dir, second)["processes"]
+        down = subprocess.run(mstc("down", "--run-dir", str(second_dir)), capture_output=True,
+                              text=True, timeout=RUN_LIMIT)
+        assert down.returncode == 0 and "stopped fleet" in down.stdout, down.stderr
+        out, _ = second.communicate(timeout=RUN_LIMIT)
+        assert second.returncode == 1
+        assert "stopped by SIGTERM" in json.loads(out.strip().splitlines()[-1])["verdict"]
+        assert not any(is_running(ProcessRecord(**p)) for p in records)
+    finally:
+        stop_processes([p for p in (fleet, second) if p is not None])

@@ -9,8 +9,26 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from deploy.summary import reachable_sub_cells
+from planner.grid import coarsen, expand, label_components
 from planner.types import BoolArray, OccupancyGrid, SubCell
+
+
+def reachable_sub_cells(grid: OccupancyGrid, starts: tuple[SubCell, ...]) -> BoolArray:
+    """Sub-cells of the free cells connected to some robot's start: what STC can cover.
+
+    A sub-cell of a partly blocked cell is not reachable (a cell is free only if all four
+    of its sub-cells are), and neither is a component no robot starts in.
+    """
+    coarse = coarsen(grid)
+    labels, _ = label_components(coarse.free)
+    h, w = labels.shape
+    wanted = {int(labels[r // 2, c // 2]) for r, c in starts if r // 2 < h and c // 2 < w}
+    wanted.discard(0)
+    cells = np.isin(labels, sorted(wanted))
+    out = np.zeros(grid.shape, dtype=bool)
+    mask = expand(cells)
+    out[: mask.shape[0], : mask.shape[1]] = mask
+    return out
 
 
 class CoverageMap:

@@ -25,6 +25,7 @@ from bus.messages import (
     Progress,
     RobotEvent,
     RobotStatus,
+    TreeReport,
     WorldState,
     world_free,
     world_visits,
@@ -33,6 +34,7 @@ from deploy.monitor.coverage import CoverageMap
 from deploy.monitor.ormstc import ClaimBook, fields_of
 from deploy.monitor.planned import Edge
 from deploy.monitor.robots import RobotView, Roster
+from deploy.monitor.tree import TreeMission
 from deploy.monitor.types import (
     Death,
     EventKind,
@@ -54,6 +56,7 @@ class FleetModel:
         self.roster = Roster(self.invalid)
         self.world = WorldPicture(self.invalid)
         self.claims = ClaimBook()
+        self.tree = TreeMission()
         self.mission: MissionStatus | None = None
         self.sim_time = 0.0
         self.time_scale: float | None = None
@@ -63,6 +66,8 @@ class FleetModel:
         self.kinds: Counter[str] = Counter()
         self.deaths: dict[tuple[int, int], Death] = {}
         self.takeovers: list[tuple[float, int, int | None]] = []
+        # each robot's moves once the record that completed the coverage was applied
+        self.moves_at_coverage: dict[int, int] | None = None
         self._seen_events: set[tuple[Any, ...]] = set()
         self._new: list[MonitorEvent] = []
 
@@ -92,6 +97,8 @@ class FleetModel:
             handler(self, record, msg)
         else:
             self._other(record, msg)
+        if self.moves_at_coverage is None and self.cover.complete_at is not None:
+            self.moves_at_coverage = {r: v.moves for r, v in self.robots.items()}
         return self._new
 
     def _emit(self, t: float, kind: EventKind, robot: int | None, text: str) -> None:
@@ -216,6 +223,8 @@ class FleetModel:
                    f"robot {notice.robot} declared dead by {by} ({notice.reason}{since})")
 
     def _mission(self, record: Record, status: MissionStatus) -> None:
+        if self.tree.on_status(status):
+            self._emit(record.t, "world", None, self.tree.line())
         final = self.mission is not None and self.mission.state != "running"
         if final and status.state == "running":
             return
@@ -295,6 +304,9 @@ class FleetModel:
                 self._emit(record.t, "died", truth.robot, f"robot {truth.robot}'s body failed")
         if self.cover.check_complete(record.t, self.sim_time, self.roster.positions()):
             self._emit(record.t, "world", None, "every reachable sub-cell is covered")
+
+    def _tree_report(self, record: Record, report: TreeReport) -> None:
+        self.tree.on_report(record, report)
 
     def _agent_state(self, record: Record, st: AgentState) -> None:
         view = self.roster.valid(record, st.robot, "agent_state")
@@ -378,4 +390,5 @@ _HANDLERS: dict[type[Any], Any] = {
     GroundTruthPose: FleetModel._pose, BumpEvent: FleetModel._bump,
     TokenChange: FleetModel._token, CoverEvent: FleetModel._cover,
     WorldState: FleetModel._world, AgentState: FleetModel._agent_state,
+    TreeReport: FleetModel._tree_report,
 }

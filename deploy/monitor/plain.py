@@ -6,6 +6,7 @@ import sys
 from collections.abc import Iterable
 from typing import TextIO
 
+from deploy.monitor.figures import mission_figures
 from deploy.monitor.model import FleetModel
 from deploy.monitor.types import MonitorEvent
 
@@ -23,11 +24,15 @@ def status_line(model: FleetModel, drops: int = 0) -> str:
     cov = f"{coverage:.1f} % ({covered}/{total})" if coverage is not None else \
         f"{covered} sub-cells (map unknown)"
     known, alive, dead, done = model.counts()
-    moves = [v.moves for v in model.robots.values()]
+    numbers = mission_figures(model)
     mission = model.mission.state if model.mission else "unknown"
-    return (f"coverage {cov}, moves max {max(moves, default=0)} total {sum(moves)}, "
+    tree = model.tree.line()
+    if tree:
+        return f"{tree}, robots {known} alive {alive} dead {dead}, mission {mission}"
+    return (f"coverage {cov}, makespan {numbers.makespan_moves} moves "
+            f"{numbers.sim_seconds:.1f} simulated s, total {numbers.total_moves} moves, "
             f"sim {model.sim_time:.1f} s, robots {known} alive {alive} dead {dead} "
-            f"done {done}, revisits {model.revisits()}, drops {drops}, mission {mission}")
+            f"done {done}, revisits {numbers.revisits}, drops {drops}, mission {mission}")
 
 
 class PlainPrinter:

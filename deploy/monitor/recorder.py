@@ -23,7 +23,7 @@ import msgpack
 from bus.codec import KIND_FIELD, VERSION_FIELD, decode, decode_any
 from bus.errors import DecodeError
 from bus.messages import MESSAGE_TYPES, SCHEMA_VERSION, version_problem
-from deploy.cli import UsageError
+from deploy.errors import RecordingError
 from deploy.monitor.types import Header, LineError, Opaque, Record, Recording, TokenChange
 
 SCHEMA = "mstc-record"
@@ -32,10 +32,6 @@ VIAS = ("sub", "query", "token")
 # Recorded lines are re-checked with the codec; a WorldState of a big map exceeds the
 # wire's 64 KiB default only in its JSON form, never on the wire, but be generous.
 _MAX_PAYLOAD = 16 * 1024 * 1024
-
-
-class RecordingError(UsageError):
-    """A recording file that cannot be used at all (missing, not a recording, too new)."""
 
 
 # --- payloads ------------------------------------------------------------------------------

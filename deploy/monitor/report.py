@@ -11,14 +11,17 @@ from dataclasses import dataclass
 from typing import Any
 
 from bus import keys
+from deploy.monitor.figures import mission_figures
 from deploy.monitor.model import FleetModel
 from deploy.monitor.redundancy import EntryAccount, account_entries
 from deploy.monitor.types import Record, Recording
+from planner.algorithms import ALGORITHMS, Family, Revisits
 
 REPORT_SCHEMA = "mstc-report"
 REPORT_VERSION = 1
-NON_REDUNDANT = ("nb", "ormstc")
-BACKTRACKING = ("bt", "opt")
+# each algorithm's promise about sub-cells covered twice, from the registry
+NON_REDUNDANT = tuple(a.name for a in ALGORITHMS.values() if a.revisits is Revisits.NONE)
+BACKTRACKING = tuple(a.name for a in ALGORITHMS.values() if a.revisits is Revisits.BACKTRACK)
 # Keys a robot publishes itself (its messages per move); sim/* is simhw's ground truth.
 _ROBOT_KINDS = ("hb", "status", "progress", "event", "look")
 
@@ -133,12 +136,9 @@ class MissionReport:
 def replay_model(records: tuple[Record, ...]) -> tuple[FleetModel, dict[int, int] | None]:
     """The model after every record, and each robot's moves when coverage completed."""
     model = FleetModel(max_events=10_000)
-    at_coverage: dict[int, int] | None = None
     for record in records:
         model.apply(record)
-        if at_coverage is None and model.cover.complete_at is not None:
-            at_coverage = {r: v.moves for r, v in model.robots.items()}
-    return model, at_coverage
+    return model, model.moves_at_coverage
 
 
 def build_report(recording: Recording) -> MissionReport:
@@ -153,16 +153,16 @@ def build_report(recording: Recording) -> MissionReport:
                      messages_per_move=round(sent.get(r, 0) / v.moves, 3) if v.moves else None,
                      dead=v.dead, took_over=tuple(v.took_over))
         for r, v in sorted(model.robots.items()))
-    first_sim = min((s for _, s, _ in model.cover.curve), default=0.0)
     account = _account(model)
     complete = model.cover.complete_at
+    numbers = mission_figures(model)
     return MissionReport(
         mission=recording.header.mission, algo=",".join(algos) or "unknown", robots=figures,
         reachable=model.total(), covered=model.covered_count(), complete=complete is not None,
-        coverage_moves=None if at_coverage is None else max(at_coverage.values(), default=0),
-        coverage_sim_seconds=None if complete is None else round(complete[1] - first_sim, 6),
-        coverage_wall_seconds=None if complete is None else round(complete[0], 6),
-        sim_seconds=model.sim_time, revisits=model.revisits(),
+        coverage_moves=None if at_coverage is None else numbers.makespan_moves,
+        coverage_sim_seconds=numbers.coverage_sim_seconds,
+        coverage_wall_seconds=numbers.coverage_wall_seconds,
+        sim_seconds=model.sim_time, revisits=numbers.revisits,
         revisited_cells=tuple((cell, tuple(model.cover.visitors.get(cell, ())))
                               for cell, n in sorted(model.covered_cells().items()) if n > 1),
         look_steps=account.look_steps, closing_reentries=len(account.closings),
@@ -249,7 +249,8 @@ def _redundancy(model: FleetModel, algos: list[str]) -> Invariant:
         return Invariant("redundancy", "skipped",
                          f"the run had failures (robots {failures}); takeovers revisit cells")
     counts = model.covered_cells()
-    if algo == "ormstc":
+    known = ALGORITHMS.get(algo)
+    if known is not None and known.family is Family.ONLINE:
         return _ormstc_redundancy(model)
     if algo in NON_REDUNDANT:
         twice = sorted(c for c, n in counts.items() if n > 1)
@@ -341,4 +342,7 @@ def format_report(report: MissionReport) -> str:
     for inv in report.invariants:
         mark = {"ok": "ok     ", "failed": "FAILED ", "skipped": "skipped"}[inv.status]
         lines.append(f"  [{mark}] {inv.name}: {inv.detail}")
+    failed = [inv.name for inv in report.invariants if inv.status == "failed"]
+    lines.append("verdict: ok (no invariant failed)" if not failed else
+                 f"verdict: FAILED ({'; '.join(failed)})")
     return "\n".join(lines)

@@ -18,6 +18,7 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
+from deploy.monitor.figures import mission_figures
 from deploy.monitor.model import FleetModel, RobotView
 from deploy.monitor.plain import format_event
 from deploy.monitor.types import MonitorEvent
@@ -193,14 +194,18 @@ def side_panel(model: FleetModel, stats: FeedStats) -> RenderableType:
     covered = model.covered_count()
     figures.add_row("coverage", f"{coverage:.1f} % ({covered}/{total})"
                     if coverage is not None else f"{covered} sub-cells (map unknown)")
-    moves = [v.moves for v in model.robots.values()]
-    figures.add_row("moves", f"max {max(moves, default=0)}, total {sum(moves)}")
+    if model.tree.line():
+        figures.add_row("tree", model.tree.line())
+    numbers = mission_figures(model)
+    figures.add_row("moves", f"makespan {numbers.makespan_moves}, total {numbers.total_moves}")
     scale = "" if model.time_scale is None else f" (x{model.time_scale:g})"
-    figures.add_row("sim time", f"{model.sim_time:.1f} s{scale}")
+    covered_in = "" if numbers.coverage_sim_seconds is None else \
+        f", covered in {numbers.coverage_sim_seconds:.1f} s"
+    figures.add_row("sim time", f"{model.sim_time:.1f} s{scale}{covered_in}")
     known, alive, dead, done = model.counts()
     figures.add_row("robots", f"{known}: {alive} alive, {dead} dead, {done} done")
     looks = sum(v.look_steps for v in model.robots.values())
-    figures.add_row("redundancy", f"{model.revisits()} revisits"
+    figures.add_row("redundancy", f"{numbers.revisits} revisits"
                     + (f" ({looks} of them look steps)" if looks else ""))
     figures.add_row("claims", f"{model.claims.claims}, {len(model.claims.conflicts)} "
                               f"conflicts settled, {len(model.claims.unsettled())} open")

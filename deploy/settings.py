@@ -1,0 +1,197 @@
+"""What ``mstc up`` is asked to run, as typed values: the settings, the kill schedule and
+the planned mission. Built once from the command line by deploy.cmd_up and read by the
+launcher; nothing downstream sees the argparse namespace."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from bus.config import DEFAULT_LEASE_MS
+from deploy.errors import UsageError
+from deploy.monitor.coverage import reachable_sub_cells
+from planner.algorithms import Family, algorithm
+from planner.geometry import cell_of
+from planner.grid import coarsen, validate_starts, work_area
+from planner.maps import resolve_world
+from planner.offline.plan import make_plan
+from planner.placement import parse_starts, random_starts
+from planner.trees import build_tree
+from planner.types import BoolArray, OccupancyGrid, SubCell
+
+# 40 simulated seconds per wall second: a forward step (1.93 s simulated) takes ~50 ms, so
+# coverage visibly grows, and the office demo (6 robots, one killed: ~330 moves of ~2.5
+# simulated seconds for the robot that takes over) ends in about 25 s of wall time.
+DEFAULT_TIME_SCALE = 40.0
+DEFAULT_STALL_S = 20.0
+# Heartbeat timeout handed to the agents. A SIGKILL is seen through the closed link and a hung
+# process through its lease (~0.75 s), whatever this is; 1 s heartbeats alone were missed by
+# CPU-starved agents on a busy 2-core machine and healthy robots were fenced
+# (docs/operations.md, "Detection against false suspicion").
+DEFAULT_DEAD_AFTER_S = 3.0
+# Beyond this many agents per CPU core, start-up and time-scale-0 missions starve processes
+# for over a second: 30 agents on 2 cores lost every robot to lease expiry at a 1 s lease,
+# none at 5 s. Crowded fleets get the long lease and heartbeat timeout.
+CROWDED_AGENTS_PER_CORE = 6
+CROWDED_LEASE_MS = 5000
+CROWDED_DEAD_AFTER_S = 5.0
+# A taker may walk this many already-covered sub-cells to reach a dead robot's section
+# without covering anything new; the default stall timeout allows for it at any time scale.
+STALL_MOVES = 100
+MOVE_SIM_S = 2.5  # forward 1.93 s plus a share of turns (docs/simhw.md)
+
+_KILL_RE = re.compile(
+    r"^(?P<robot>\d+)@(?:(?:progress=)?(?P<pct>\d+(?:\.\d+)?)%|progress=(?P<pct2>\d+(?:\.\d+)?)"
+    r"|(?P<sec>\d+(?:\.\d+)?)s?)$")
+
+
+@dataclass(frozen=True)
+class KillOrder:
+    """Kill ``robot`` at ``seconds`` after the mission started, at ``percent`` coverage, or
+    once ``step`` steps are complete (tree missions). ``hw`` fails its body in simhw instead
+    of killing its process."""
+
+    robot: int
+    seconds: float | None = None
+    percent: float | None = None
+    hw: bool = False
+    step: int | None = None
+
+    def is_due(self, elapsed: float | None, coverage: float | None,
+               step: int | None) -> bool:
+        return ((self.seconds is not None and elapsed is not None and elapsed >= self.seconds)
+                or (self.percent is not None and coverage is not None
+                    and coverage >= self.percent)
+                or (self.step is not None and step is not None and step >= self.step))
+
+    def describe(self) -> str:
+        when = (f"{self.seconds:g} s" if self.seconds is not None else
+                f"{self.percent:g} %" if self.percent is not None else f"step {self.step}")
+        what = "fail body of" if self.hw else "SIGKILL agent"
+        return f"{what} {self.robot} at {when}"
+
+
+def parse_kill(text: str, hw: bool = False) -> KillOrder:
+    """``ID@SECONDS``, ``ID@Ns``, ``ID@progress=P`` or ``ID@P%`` (coverage percent)."""
+    match = _KILL_RE.match(text.strip())
+    if match is None:
+        raise argparse.ArgumentTypeError(
+            f"expected ID@SECONDS or ID@progress=PERCENT (e.g. 2@3 or 2@progress=40), "
+            f"got {text!r}")
+    pct = match["pct"] or match["pct2"]
+    if pct is not None:
+        if not 0 <= float(pct) <= 100:
+            raise argparse.ArgumentTypeError(f"coverage percent must be 0..100 in {text!r}")
+        return KillOrder(int(match["robot"]), percent=float(pct), hw=hw)
+    return KillOrder(int(match["robot"]), seconds=float(match["sec"]), hw=hw)
+
+
+@dataclass(frozen=True)
+class MissionSetup:
+    """The mission as the launcher plans it before starting anything."""
+
+    world: str
+    cell_size: int | None
+    grid: OccupancyGrid
+    starts: tuple[SubCell, ...]
+    algo: str
+    tree: str
+    seed: int
+    time_scale: float
+    reachable: BoolArray
+    planned_makespan: int
+
+    @property
+    def k(self) -> int:
+        return len(self.starts)
+
+    @classmethod
+    def plan(cls, settings: UpSettings) -> MissionSetup:
+        """Load the map, place the robots and plan (PlannerError for user mistakes)."""
+        grid = resolve_world(settings.world, settings.cell_size)
+        if settings.starts:
+            starts = parse_starts(settings.starts)
+            if len(starts) != settings.robots:
+                raise UsageError(f"--starts gives {len(starts)} robots, -n says {settings.robots}")
+        else:
+            starts = random_starts(grid, settings.robots, settings.seed)
+        validate_starts(grid, coarsen(grid), starts)
+        if algorithm(settings.algo).family is Family.ONLINE:
+            # An on-line algorithm plans nothing (its agents get no map); its lockstep
+            # simulator's coverage time on the same world and starts stands in for the planned
+            # makespan, and it rejects two robots in one cell before any process starts.
+            planned = algorithm(settings.algo).load_lockstep()(grid, starts).makespan
+        else:
+            # The agents plan the same way (the offline agent's plan); here it gives the planned
+            # makespan and rejects unplannable missions before any process starts.
+            area = work_area(grid, starts)
+            tree = build_tree(area.cells, settings.tree, seed=settings.seed,
+                              starts=[cell_of(start) for start in starts])
+            planned = make_plan(area, tree, settings.algo).makespan
+        return cls(world=settings.world, cell_size=settings.cell_size, grid=grid,
+                   starts=starts, algo=settings.algo, tree=settings.tree, seed=settings.seed,
+                   time_scale=settings.time_scale, reachable=reachable_sub_cells(grid, starts),
+                   planned_makespan=planned)
+
+
+@dataclass(frozen=True)
+class UpSettings:
+    """Every setting of one ``mstc up`` run, defaults resolved."""
+
+    robots: int
+    world: str = "office"
+    cell_size: int | None = None
+    starts: str | None = None  # "r,c;r,c;..." as given, or None for random starts
+    algo: str = "opt"
+    tree: str = "dfs"
+    seed: int = 0
+    time_scale: float = DEFAULT_TIME_SCALE
+    kills: tuple[KillOrder, ...] = ()
+    mission: str = ""
+    run_dir: Path = Path("runs")
+    listen: str = ""
+    connect: str | None = None  # an existing router; None: start one on ``listen``
+    lease_ms: int = DEFAULT_LEASE_MS
+    dead_after: float = DEFAULT_DEAD_AFTER_S
+    stall_timeout: float = DEFAULT_STALL_S
+    start_timeout: float = 30.0
+    linger: float = 3.0
+    agent_args: tuple[str, ...] = ()
+    simhw_args: tuple[str, ...] = ()
+    plain: bool = False
+    record: Path | None = None
+
+    @property
+    def own_router(self) -> bool:
+        return self.connect is None
+
+
+def stall_timeout(time_scale: float, given: float | None = None) -> float:
+    """--stall-timeout, by default long enough for STALL_MOVES moves at ``time_scale``."""
+    if given is not None:
+        return float(given)
+    if time_scale == 0 or math.isinf(time_scale):
+        return DEFAULT_STALL_S
+    return DEFAULT_STALL_S + STALL_MOVES * MOVE_SIM_S / time_scale
+
+
+def liveness(robots: int, lease_ms: int | None = None, dead_after: float | None = None,
+             cores: int | None = None) -> tuple[int, float]:
+    """(lease ms, heartbeat timeout): the given ones, else defaults by agents per CPU core."""
+    crowded = robots > CROWDED_AGENTS_PER_CORE * (cores or os.cpu_count() or 1)
+    if lease_ms is None:
+        lease_ms = CROWDED_LEASE_MS if crowded else DEFAULT_LEASE_MS
+    if dead_after is None:
+        dead_after = CROWDED_DEAD_AFTER_S if crowded else DEFAULT_DEAD_AFTER_S
+    return lease_ms, dead_after
+
+
+def check_kills(orders: tuple[KillOrder, ...], robots: int) -> tuple[KillOrder, ...]:
+    for order in orders:
+        if order.robot >= robots:
+            raise UsageError(f"--kill {order.robot}: robots are 0..{robots - 1}")
+    return orders
