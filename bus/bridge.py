@@ -263,13 +263,12 @@ class Bus:
         except DecodeError as error:
             self.drops.count(keys.kind_of(key), "decode", f"{key}: {error}")
             return None
-        claimed = getattr(msg, "robot", None)
-        if claimed is not None:
-            parsed = keys.parse(key)
-            if parsed is not None and parsed.robot != claimed \
-                    and (getattr(msg, "KIND", ""), parsed.kind) in ROBOT_NAMED:
+        parsed = keys.parse(key)
+        if parsed is not None and parsed.robot is not None:
+            named = ROBOT_NAMED.get((getattr(msg, "KIND", ""), parsed.kind))
+            if named is not None and getattr(msg, named) != parsed.robot:
                 self.drops.count(parsed.kind, "robot_mismatch",
-                                 f"{key}: message about robot {claimed}")
+                                 f"{key}: {named} {getattr(msg, named)}")
                 return None
         return msg
 

@@ -16,6 +16,7 @@ from deploy.fleet import (
     latest_run_dir,
     send_signal,
 )
+from deploy.security import FleetSecurity, attach
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -24,6 +25,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="fail the robot's body in simhw instead of killing its process")
     parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
                         help="the fleet's run directory (default: the most recent under runs/)")
+    parser.add_argument("--credentials", type=Path, default=None, metavar="FILE",
+                        help="--hw: the mission's credentials (default: $MSTC_CREDENTIALS, "
+                             "else the run directory's); kill logs in as operator")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
         raise FleetError(f"mission {info.mission} covers a tree: its robots have no simulated "
                          f"bodies to fail (kill the agent without --hw)")
     if args.hw:
-        message = asyncio.run(fail_body(info, args.robot))
+        creds = attach(args.credentials, run_dir.path, info)
+        message = asyncio.run(fail_body(info, args.robot, creds))
         print(f"mstc kill: {message} (mission {info.mission})")
         return 0
     record = info.agent(args.robot)
@@ -44,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-async def fail_body(info: FleetInfo, robot: int) -> str:
+async def fail_body(info: FleetInfo, robot: int, creds: Path | None = None) -> str:
     """Ask the fleet's simhw to fail ``robot``'s body; FleetError if it refuses or is gone."""
     from bus import keys
     from bus.bridge import Bus
@@ -53,7 +58,8 @@ async def fail_body(info: FleetInfo, robot: int) -> str:
 
     if not 0 <= robot < info.robots:
         raise FleetError(f"robots of this fleet are 0..{info.robots - 1}, got {robot}")
-    settings = ConnectionSettings(connect=(info.endpoint,), mission=info.mission)
+    settings = FleetSecurity(creds).operator(
+        ConnectionSettings(connect=(info.endpoint,), mission=info.mission))
     async with asyncio.timeout(10.0), Bus.connect(settings) as bus:
         replies = await bus.query(keys.hw_admin(info.mission), AdminCommand("fail", robot),
                                   AdminReply, timeout=3.0)

@@ -94,7 +94,7 @@ def attack(session: zenoh.Session, mission: str, seconds: float, intel: Intel) -
             rounds += 1
             lives = intel.snapshot()
             for robot in ROBOTS:
-                for incarnation in sorted(lives.get(robot, {1}))[-2:] + [99]:
+                for incarnation in [*sorted(lives.get(robot, {1}))[-2:], 99]:
                     for detector in (None, (robot + 1) % 4, robot):
                         session.put(keys.death(mission, robot), encode(DeathNotice(
                             robot, incarnation, detector, "token", 0.0)))

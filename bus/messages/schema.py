@@ -90,13 +90,13 @@ SERVED_BY_ROBOTS = Access(serve=(ROBOTS,), ask=(EVERYONE,))
 class KeyFamily:
     """Keys ``mstc/<mission>/<path>``; ``{robot}`` and ``{incarnation}`` chunks of ``path``
     are non-negative ints. ``label`` is the kind keys.parse reports (drop counters, logs).
-    ``names_robot``: the ``robot`` field of a kind listed on this family equals the key's
-    ``{robot}`` (false where the key names the receiver, not the subject)."""
+    ``robot_field``: the field of a kind listed on this family that must equal the key's
+    ``{robot}`` (None where the key names a receiver that no field names)."""
 
     label: str
     path: str
     access: Access = NOBODY
-    names_robot: bool = True
+    robot_field: str | None = "robot"
 
     @functools.cached_property
     def chunks(self) -> tuple[str, ...]:
@@ -104,10 +104,10 @@ class KeyFamily:
 
 
 def family(path: str, label: str | None = None, access: Access = NOBODY, *,
-           names_robot: bool = True) -> KeyFamily:
+           robot_field: str | None = "robot") -> KeyFamily:
     """A key family; its label is its path without the id chunks unless given."""
     return KeyFamily(label or "/".join(c for c in path.split("/") if c not in _ID_CHUNKS),
-                     path, access, names_robot)
+                     path, access, robot_field)
 
 
 @dataclass(frozen=True)
@@ -139,7 +139,8 @@ KINDS: tuple[Kind, ...] = (
     Kind(RobotEvent, (family("event/{robot}", access=BY_OWN),), C.CRITICAL),
     # <robot>: the dead one; any robot may declare a death (bus.liveness checks the detector)
     Kind(DeathNotice, (family("death/{robot}", access=Access(put=(ROBOTS,))),), C.CRITICAL),
-    Kind(MissionStatus, (family("mission", access=Access(put=(ROBOTS,))),
+    # the verdict is the robots'; a tree fleet's launcher announces its set-up on it too
+    Kind(MissionStatus, (family("mission", access=Access(put=(ROBOTS, OPERATOR))),
                          family("state/mission", access=SERVED_BY_ROBOTS)), C.CRITICAL),
     # what a robot covered (bus.messages.progress)
     Kind(Progress, (family("progress/{robot}", access=BY_OWN),), C.STREAM),
@@ -170,9 +171,11 @@ KINDS: tuple[Kind, ...] = (
     Kind(OrmstcWithdrawal, (family("ormstc/withdraw/{robot}", access=BY_OWN),), C.CRITICAL),
     # connected tree coverage (bus.messages.tree): a lost report stalls the whole team's
     # step, so never drop it; the outbox is the robot's, only the radio fills inboxes
-    Kind(TreeReport, (family("tree/robot/{robot}/outbox", "tree/outbox", BY_OWN),
+    # (an outbox carries relayed reports too: its robot is the sender)
+    Kind(TreeReport, (family("tree/robot/{robot}/outbox", "tree/outbox", BY_OWN,
+                             robot_field="sender"),
                       family("tree/robot/{robot}/inbox", "tree/inbox", BY_SIMHW,
-                             names_robot=False)), C.CRITICAL, since=3),
+                             robot_field=None)), C.CRITICAL, since=3),
     # queryable (the radio, which runs with the simulator's role)
     Kind(RadioStats, (family("tree/radio", access=Access(serve=(SIMHW,), ask=(EVERYONE,))),),
          C.CONTROL, since=2),
@@ -228,13 +231,13 @@ FAMILIES: tuple[KeyFamily, ...] = _families()
 MESSAGE_TYPES: dict[str, type[Any]] = _registry()  # KIND -> class
 KIND_SINCE: dict[str, int] = {kind.name: kind.since for kind in KINDS}
 RECORD_TYPES: frozenset[type[Any]] = frozenset(RECORDS)
-# (kind, key label) pairs whose message ``robot`` field must equal the key's {robot}: Zenoh's
-# access control stops robot 3 from writing on robot 5's keys, this stops it from writing
-# robot 5's messages on its own.
-ROBOT_NAMED: frozenset[tuple[str, str]] = frozenset(
-    (kind.name, fam.label) for kind in KINDS for fam in kind.keys
-    if ROBOT in fam.chunks and fam.names_robot
-    and "robot" in getattr(kind.type, "__dataclass_fields__", {}))
+# (kind, key label) -> the message field that must equal the key's {robot}: Zenoh's access
+# control stops robot 3 from writing on robot 5's keys, this stops it from writing robot 5's
+# messages on its own.
+ROBOT_NAMED: dict[tuple[str, str], str] = {
+    (kind.name, fam.label): fam.robot_field for kind in KINDS for fam in kind.keys
+    if ROBOT in fam.chunks and fam.robot_field is not None
+    and fam.robot_field in getattr(kind.type, "__dataclass_fields__", {})}
 
 
 def version_problem(kind: str, version: object) -> str | None:
