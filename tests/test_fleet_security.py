@@ -88,3 +88,49 @@ def test_up_with_a_credentials_file_of_another_mission_is_refused(tmp_path: Path
                           timeout=RUN_LIMIT)
     assert done.returncode == 2 and "mission 'elsewhere'" in done.stderr, done.stderr
     assert time.monotonic() - started < RUN_LIMIT
+
+
+def test_monitor_and_kill_hw_attach_to_a_secure_fleet_with_its_credentials(
+        tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    up = start_up(pick_free_port(), run_dir, "--time-scale", "40")
+    try:
+        info = wait_for_fleet(run_dir, up)
+        watch = subprocess.run(
+            [sys.executable, "-m", "deploy.cli", "monitor", "--run-dir", str(run_dir),
+             "--plain", "--duration", "3"], capture_output=True, text=True, timeout=60)
+        assert watch.returncode == 0, watch.stderr[-2000:]
+        assert f"watching mission {info.mission}" in watch.stderr
+        assert "robot" in watch.stdout, watch.stdout[-2000:]  # it heard the fleet
+        kill = subprocess.run(
+            [sys.executable, "-m", "deploy.cli", "kill", "1", "--hw", "--run-dir",
+             str(run_dir)], capture_output=True, text=True, timeout=60)
+        assert kill.returncode == 0, kill.stderr[-2000:]
+        out, err = up.communicate(timeout=RUN_LIMIT)
+        assert up.returncode == 0, out[-3000:] + err[-3000:]
+        summary = json.loads((run_dir / "summary.json").read_text())
+        assert summary["complete"] is True
+        assert [lost["robot"] for lost in summary["robots_lost"]] == [1], summary
+    finally:
+        if up.poll() is None:
+            up.kill()
+            up.communicate()
+
+
+def test_mstc_credentials_makes_splits_and_rotates(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    from deploy.cli import main as cli_main
+
+    path, role = tmp_path / "m.json", tmp_path / "r3.json"
+    assert cli_main(["credentials", "new", str(path), "--mission", "m", "--robots", "4"]) == 0
+    assert cli_main(["credentials", "new", str(path), "--mission", "m", "--robots", "4"]) == 2
+    assert "exists" in capsys.readouterr().err
+    creds = credentials.load(path)
+    assert cli_main(["credentials", "role", str(path), "robot_3", str(role)]) == 0
+    assert credentials.load(role).passwords == {"robot_3": creds.passwords["robot_3"]}
+    assert stat.S_IMODE(role.stat().st_mode) == 0o600
+    assert cli_main(["credentials", "role", str(path), "robot_9", str(role)]) == 2
+    assert cli_main(["credentials", "rotate", str(path)]) == 0
+    rotated = credentials.load(path)
+    assert rotated.passwords.keys() == creds.passwords.keys() != set()
+    assert not set(rotated.passwords.values()) & set(creds.passwords.values())
