@@ -151,12 +151,14 @@ def _open(endpoint: str, creds: Path | None, role: str | None,
 class _Heard:
     def __init__(self, session: zenoh.Session, key: str) -> None:
         self.keys: list[str] = []
+        self.payloads: list[bytes] = []
         self._lock = threading.Lock()
         self._sub = session.declare_subscriber(key, self._on)
 
     def _on(self, sample: zenoh.Sample) -> None:
         with self._lock:
             self.keys.append(str(sample.key_expr))
+            self.payloads.append(sample.payload.to_bytes())
 
     def wait_for(self, key: str, timeout: float = 3.0) -> bool:
         deadline = time.monotonic() + timeout
@@ -315,8 +317,19 @@ def test_mtls_with_credentials_works_on_loopback_and_refuses_a_wrong_ca(
         opened += [listener, robot3]
         heard = _Heard(listener, keys.all_heartbeats(MISSION))
         time.sleep(SETTLE)
+        # robot_3's password with the observer's certificate: the rules need both to name
+        # the role, so it gets the rights of neither
+        mixed = _open(endpoint, path, "robot_3",
+                      TlsFiles(good / "ca.pem", good / "observer.pem", good / "observer.key"))
+        assert mixed is not None
+        opened.append(mixed)
+        time.sleep(SETTLE)
+        mixed.put(keys.heartbeat(MISSION, 3), encode(Heartbeat(3, 1, 9, None, "ok", 0.0)))
         robot3.put(keys.heartbeat(MISSION, 3), encode(Heartbeat(3, 1, 1, None, "ok", 0.0)))
         assert heard.wait_for(keys.heartbeat(MISSION, 3)), "nothing travels over mTLS"
+        time.sleep(0.3)
+        assert [decode(p, Heartbeat).seq for p in heard.payloads] == [1], \
+            "a mixed identity could publish"
     finally:
         for session in opened:
             session.close()
