@@ -336,7 +336,12 @@ class _Opener:
 
 
 def _waiting_note(settings: ConnectionSettings) -> None:
-    _log.info("waiting for a Zenoh router at %s", ", ".join(settings.endpoints) or "-")
+    # Zenoh reports a refused log-in like an absent router: say so, or a wrong password
+    # looks like a router that never came up.
+    refused = (f" (or it refuses role {settings.role} with {settings.credentials})"
+               if settings.secure else "")
+    _log.info("waiting for a Zenoh router at %s%s", ", ".join(settings.endpoints) or "-",
+              refused)
 
 
 @contextmanager
