@@ -33,6 +33,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "monitor": ("deploy.cmd_monitor", "watch a mission live (terminal view or --plain)"),
     "replay": ("deploy.cmd_replay", "replay a recorded mission through the live view"),
     "report": ("deploy.cmd_report", "summarise and verify a recorded mission"),
+    "export": ("deploy.cmd_export", "write a recorded mission as MCAP and/or rosbag2"),
+    "foxglove": ("deploy.cmd_foxglove", "serve a mission live to Foxglove (WebSocket)"),
+    "ros-bridge": ("deploy.cmd_ros_bridge", "a mission's map, poses and paths as ROS 2 topics "
+                                           "on Zenoh (rmw_zenoh's format)"),
     "tree-cover": ("deploy.cmd_tree_cover", "connected coverage of a tree (NCOCTA / COCTA)"),
     "tree-fleet": ("deploy.cmd_tree_fleet", "NCOCTA / COCTA as a fleet: router, radio, K agents"),
     "radio": ("simhw.radio", "run the radio relay of tree coverage (same or adjacent node)"),

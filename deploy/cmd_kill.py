@@ -13,10 +13,14 @@ from deploy.errors import FleetError
 from deploy.fleet import (
     FleetInfo,
     RunDir,
+    is_running,
     latest_run_dir,
+    port_reachable,
     send_signal,
 )
 from deploy.security import FleetSecurity, attach
+
+CONNECT_TIMEOUT_S = 10.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -58,11 +62,23 @@ async def fail_body(info: FleetInfo, robot: int, creds: Path | None = None) -> s
 
     if not 0 <= robot < info.robots:
         raise FleetError(f"robots of this fleet are 0..{info.robots - 1}, got {robot}")
+    # A stopped fleet is told apart before waiting on a router that will never answer.
+    simhw = [p for p in info.processes if p.role == "simhw"]
+    if simhw and not any(is_running(p) for p in simhw):
+        raise FleetError(f"the fleet of mission {info.mission} is not running (its simhw, "
+                         f"pid {simhw[0].pid}, has exited)")
+    if not port_reachable(info.endpoint):
+        raise FleetError(f"no router answers at {info.endpoint} (mission {info.mission}): "
+                         f"is the fleet still running?")
     settings = FleetSecurity(creds).operator(
         ConnectionSettings(connect=(info.endpoint,), mission=info.mission))
-    async with asyncio.timeout(10.0), Bus.connect(settings) as bus:
-        replies = await bus.query(keys.hw_admin(info.mission), AdminCommand("fail", robot),
-                                  AdminReply, timeout=3.0)
+    try:
+        async with asyncio.timeout(CONNECT_TIMEOUT_S), Bus.connect(settings) as bus:
+            replies = await bus.query(keys.hw_admin(info.mission),
+                                      AdminCommand("fail", robot), AdminReply, timeout=3.0)
+    except TimeoutError:
+        raise FleetError(f"no connection to the router at {info.endpoint} within "
+                         f"{CONNECT_TIMEOUT_S:g} s (mission {info.mission})") from None
     if not replies:
         raise FleetError(f"no answer from simhw of mission {info.mission} at {info.endpoint}")
     reply = replies[0].msg

@@ -20,6 +20,8 @@ from bus.config import ConnectionSettings, add_connection_arguments, settings_fr
 from bus.errors import BusError
 from deploy.errors import UsageError
 
+CONNECT_TIMEOUT_S = 30.0
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plain", action="store_true",
@@ -28,7 +30,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record", type=Path, default=None, metavar="FILE",
                         help="write every message to FILE as JSON Lines (see docs/protocol.md)")
     parser.add_argument("--duration", type=positive, default=None, metavar="S",
-                        help="stop after S seconds")
+                        help="stop after S seconds (counted from the start, waiting for the "
+                             "router included)")
+    parser.add_argument("--connect-timeout", type=positive, default=CONNECT_TIMEOUT_S,
+                        metavar="S", help="give up (exit 2) if no router answers within S "
+                                          "seconds (default %(default)s)")
     parser.add_argument("--exit-when-done", action="store_true",
                         help="stop once the mission has a verdict and every robot is done, "
                              "dead or gone")
@@ -42,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_connection_arguments(parser)
 
 
-def _follow_run_dir(args: argparse.Namespace,
+def follow_run_dir(args: argparse.Namespace,
                     settings: ConnectionSettings) -> ConnectionSettings:
     """Point the monitor at a fleet started by `mstc up` or `mstc tree-fleet` (its mission
     name is unique per run). An explicit --mission (or MSTC_MISSION) wins; without a run
@@ -71,11 +77,18 @@ def _follow_run_dir(args: argparse.Namespace,
 
 
 def run(args: argparse.Namespace) -> int:
-    from deploy.monitor.app import PlainScreen, RichScreen, Screen, Watcher, watch_live
+    from deploy.monitor.app import (
+        PlainScreen,
+        RichScreen,
+        Screen,
+        Watcher,
+        until_connected,
+        watch_live,
+    )
 
     try:
         # a monitor only watches: it logs in as observer unless told otherwise
-        settings = _follow_run_dir(args, settings_from_args(args, default_role="observer"))
+        settings = follow_run_dir(args, settings_from_args(args, default_role="observer"))
     except BusError as error:
         raise UsageError(str(error)) from error
     if args.record is not None and not args.record.parent.is_dir():
@@ -97,9 +110,19 @@ def run(args: argparse.Namespace) -> int:
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.add_signal_handler(sig, on_signal)
-        await watch_live(settings, watcher, stop=stop, duration=args.duration,
-                         until_settled=args.exit_when_done, world_period=args.world_period,
-                         record=args.record)
+        limit = min(args.connect_timeout, args.duration or args.connect_timeout)
+        try:
+            async with asyncio.TaskGroup() as group:
+                group.create_task(until_connected(lambda: watcher.connected, settings, limit,
+                                                  say=_say))
+                if args.duration is not None:
+                    group.create_task(_stop_after(stop, args.duration))
+                await watch_live(settings, watcher, stop=stop,
+                                 until_settled=args.exit_when_done,
+                                 world_period=args.world_period, record=args.record)
+                stop.set()  # ends the duration timer once the watch is over
+        except* (BusError, UsageError) as failed:
+            raise failed.exceptions[0] from None
 
     try:
         asyncio.run(main())
@@ -108,3 +131,14 @@ def run(args: argparse.Namespace) -> int:
     except asyncio.CancelledError:
         return 130
     return 0
+
+
+def _say(text: str) -> None:
+    print(f"mstc monitor: {text}", file=sys.stderr, flush=True)
+
+
+async def _stop_after(stop: asyncio.Event, seconds: float) -> None:
+    """--duration from the command's start, so that waiting for the router counts too."""
+    with contextlib.suppress(TimeoutError):
+        await asyncio.wait_for(stop.wait(), seconds)
+    stop.set()

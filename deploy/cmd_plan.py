@@ -126,6 +126,11 @@ def _placement(args: argparse.Namespace) -> tuple[str | None, int | None]:
 
 
 def run(args: argparse.Namespace) -> int:
+    plot = None
+    if args.plot:
+        from deploy.figure_path import figure_path
+
+        plot = figure_path(args.plot, "--plot")
     grid = resolve_world(args.world, cell_size=args.cell_size)
     starts_text, count = _placement(args)
     if starts_text is not None:
@@ -156,10 +161,10 @@ def run(args: argparse.Namespace) -> int:
         print("\n".join(summary_lines(plan, metrics, tree_name)))
         for note in plan.notes:
             print(f"note: {note}")
-    if args.plot:
+    if plot is not None:
         from deploy.plot_plan import plot_plan
 
-        plot_plan(plan, area.grid, args.plot)
+        plot_plan(plan, area.grid, plot)
         if not args.json:
-            print(f"plot written to {args.plot}")
+            print(f"plot written to {plot}")
     return 0

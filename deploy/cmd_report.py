@@ -28,6 +28,11 @@ def run(args: argparse.Namespace) -> int:
     from deploy.monitor.report import build_report, format_report, replay_model
     from deploy.monitor.tree_report import build_tree_report, tree_model
 
+    png = None
+    if args.png is not None:
+        from deploy.figure_path import figure_path
+
+        png = figure_path(args.png, "--png")
     recording = read_recording(args.file)
     for error in recording.errors:
         print(f"{args.file}:{error.line}: skipped: {error.reason}", file=sys.stderr)
@@ -39,10 +44,10 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(report.to_json(), indent=2, sort_keys=True))
     else:
         print(format_report(report))
-    if args.png is not None:
+    if png is not None:
         from deploy.monitor.report_png import write_png
 
-        write_png(replay_model(recording.records)[0], report, args.png)
+        write_png(replay_model(recording.records)[0], report, png)
     failed = [inv for inv in report.invariants if inv.status == "failed"]
     for inv in failed:
         print(f"mstc report: invariant failed: {inv.name}: {inv.detail}", file=sys.stderr)

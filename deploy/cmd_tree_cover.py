@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
+from deploy.figure_path import save_figure
 from planner.algorithms import Family, choices_help, names
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import tree_from_spec
@@ -23,6 +25,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    plot = None
+    if args.plot:
+        from deploy.figure_path import figure_path
+
+        plot = figure_path(args.plot, "--plot")
     tree = tree_from_spec(args.tree)
     result = run_coverage(tree, args.robots, args.algo)
     summary = _summary(tree, result)
@@ -31,8 +38,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         for key, value in summary.items():
             print(f"{key:>22}: {value}")
-    if args.plot:
-        _plot(tree, result, args.plot)
+    if plot is not None:
+        _plot(tree, result, plot)
     return 0 if result.connected else 1
 
 
@@ -47,7 +54,7 @@ def _summary(tree: Tree, result: CoverageResult) -> dict[str, object]:
     }
 
 
-def _plot(tree: Tree, result: CoverageResult, path: str) -> None:
+def _plot(tree: Tree, result: CoverageResult, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -64,5 +71,5 @@ def _plot(tree: Tree, result: CoverageResult, path: str) -> None:
     fig.suptitle(f"{result.algo.value.upper()} on {tree.name}, k={result.robots}, "
                  f"SF={result.speedup:.2f}")
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
+    save_figure(fig, path, "--plot", dpi=80)
     plt.close(fig)

@@ -109,6 +109,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record", type=Path, default=None, metavar="FILE",
                         help="record every message of the mission to FILE (JSON Lines; "
                              "see mstc replay and mstc report)")
+    parser.add_argument("--record-mcap", type=Path, default=None, metavar="OUT",
+                        help="record the mission as MCAP for Foxglove (docs/robotics.md; "
+                             "needs the robotics extra)")
     security.add_arguments(parser)
 
 
@@ -118,6 +121,13 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
     kills = check_kills((*args.kill, *args.kill_hw), args.robots)
     if args.record is not None and not args.record.parent.is_dir():
         raise UsageError(f"--record {args.record}: directory {args.record.parent} does not exist")
+    if args.record_mcap is not None:
+        if not args.record_mcap.absolute().parent.is_dir():
+            raise UsageError(f"--record-mcap {args.record_mcap}: directory "
+                             f"{args.record_mcap.absolute().parent} does not exist")
+        from deploy.robotics import require_extra
+
+        require_extra()
     lease_ms, dead_after = liveness(args.robots, args.lease_ms, args.dead_after, cores)
     mission = args.mission or unique_mission()
     return UpSettings(
@@ -129,7 +139,7 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
         stall_timeout=stall_timeout(args.time_scale, args.stall_timeout),
         start_timeout=args.start_timeout or 30.0 + args.robots, linger=args.linger,
         agent_args=tuple(args.agent_arg), simhw_args=tuple(args.simhw_arg), plain=args.plain,
-        record=args.record)
+        record=args.record, record_mcap=args.record_mcap)
 
 
 def endpoint_of(settings: UpSettings) -> str:
@@ -154,4 +164,4 @@ def run(args: argparse.Namespace) -> int:
     connection = secured.observer(ConnectionSettings(
         connect=(endpoint,), mission=settings.mission, lease_ms=settings.lease_ms))
     return run_recorded(launch(setup, settings, endpoint, started), connection,
-                        settings.record, "up")
+                        settings.record, "up", settings.record_mcap)

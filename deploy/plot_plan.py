@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from deploy.errors import UsageError
+from deploy.figure_path import save_figure
 from planner.types import OccupancyGrid, Plan
 
 
-def plot_plan(plan: Plan, grid: OccupancyGrid, out: str) -> None:
+def plot_plan(plan: Plan, grid: OccupancyGrid, out: Path) -> None:
     try:
         import matplotlib
 
@@ -37,5 +40,5 @@ def plot_plan(plan: Plan, grid: OccupancyGrid, out: str) -> None:
     if plan.k <= 12:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
+    save_figure(fig, out, "--plot", dpi=110)
     plt.close(fig)

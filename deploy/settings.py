@@ -164,6 +164,7 @@ class UpSettings:
     simhw_args: tuple[str, ...] = ()
     plain: bool = False
     record: Path | None = None
+    record_mcap: Path | None = None
     credentials: Path | None = None  # the mission's credentials (deploy.security); None: insecure
 
     @property

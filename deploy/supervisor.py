@@ -140,15 +140,15 @@ class Supervisor:
 
 
 def run_recorded(main: Awaitable[T], connection: ConnectionSettings, record: Path | None,
-                 source: str) -> T:
+                 source: str, record_mcap: Path | None = None) -> T:
     """Run a launcher's coroutine to its end, with every message of its mission recorded
-    to ``record`` (JSON Lines, for mstc replay and mstc report) when one is given; ``source``
-    (the command) goes into the recording's header."""
-    if record is None:
+    to ``record`` (JSON Lines, for mstc replay and mstc report) and/or ``record_mcap`` (MCAP,
+    docs/robotics.md) when given; ``source`` (the command) goes into the recording's header."""
+    if record is None and record_mcap is None:
         return asyncio.run(_awaited(main))
     from deploy.monitor.app import recorded  # the recorder pulls in the rich view
 
-    return asyncio.run(recorded(main, connection, record, source))
+    return asyncio.run(recorded(main, connection, record, source, record_mcap))
 
 
 async def _awaited(main: Awaitable[T]) -> T:

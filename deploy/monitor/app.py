@@ -15,10 +15,11 @@ from rich.live import Live
 from bus.bridge import Bus
 from bus.config import ConnectionSettings, open_session_async
 from bus.messages import SCHEMA_VERSION
+from deploy.errors import FleetError
 from deploy.monitor.live import LiveFeed, poll
 from deploy.monitor.model import FleetModel
 from deploy.monitor.plain import PlainPrinter
-from deploy.monitor.recorder import RecordWriter
+from deploy.monitor.recorder import Recorder, Recorders, RecordWriter
 from deploy.monitor.types import Header, MonitorEvent, Record, Recording
 from deploy.monitor.view import FeedStats, render
 
@@ -27,6 +28,7 @@ TICK_S = 0.05
 REFRESH_S = 0.25
 WORLD_PERIOD_S = 2.0
 RENDER_SHARE = 5.0
+CONNECT_POLL_S = 0.1
 
 
 class Screen(Protocol):
@@ -108,7 +110,7 @@ class RateMeter:
 class Watcher:
     """Model + screen + optional recorder, fed with records."""
 
-    def __init__(self, screen: Screen, recorder: RecordWriter | None = None,
+    def __init__(self, screen: Screen, recorder: Recorder | None = None,
                  model: FleetModel | None = None) -> None:
         self.model = model or FleetModel()
         self.screen = screen
@@ -133,16 +135,26 @@ class Watcher:
 async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
                      stop: asyncio.Event | None = None, duration: float | None = None,
                      until_settled: bool = False, world_period: float = WORLD_PERIOD_S,
-                     record: Path | None = None, source: str = "monitor") -> FeedStats:
+                     record: Path | None = None, record_mcap: Path | None = None,
+                     source: str = "monitor") -> FeedStats:
     """Watch ``settings.mission`` until ``stop``, ``duration`` or (optionally) the end of
-    the mission; the final state and world are queried once more before returning."""
+    the mission; the final state and world are queried once more before returning.
+    ``record`` and ``record_mcap`` keep every message as JSON Lines and as MCAP."""
     stop = stop or asyncio.Event()
     async with open_session_async(settings) as session, Bus(session, settings.mission) as bus:
         watcher.connected = True
         feed = LiveFeed(bus)
+        started = time.time()
+        kept: list[Recorder] = []
         if record is not None:
-            watcher.recorder = RecordWriter(record, Header(
-                settings.mission, time.time(), source, SCHEMA_VERSION))
+            kept.append(RecordWriter(record, Header(settings.mission, started, source,
+                                                    SCHEMA_VERSION)))
+        if record_mcap is not None:
+            from deploy.robotics.export import McapRecorder  # the robotics extra
+
+            kept.append(McapRecorder(record_mcap, settings.mission, started))
+        if kept:
+            watcher.recorder = kept[0] if len(kept) == 1 else Recorders(kept)
         feed.start()
         try:
             return await _loop(feed, watcher, stop, duration, until_settled, world_period)
@@ -151,14 +163,35 @@ async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
                 watcher.recorder.close()
 
 
-async def recorded(main: Awaitable[T], settings: ConnectionSettings, path: Path,
-                   source: str = "up") -> T:
-    """Await ``main`` (a launcher) with a recorder of ``settings.mission`` beside it; the
-    recording ends when ``main`` does (at once if the router never came up)."""
+async def until_connected(connected: Callable[[], bool], settings: ConnectionSettings,
+                          limit: float, *, say: Callable[[str], None],
+                          note_after: float = 0.5) -> None:
+    """Return once ``connected()``; say what it waits for if that takes more than
+    ``note_after`` seconds, and raise FleetError after ``limit`` seconds: a monitor started
+    with no router must not wait silently for ever."""
+    where = ", ".join(settings.endpoints) or "the configured endpoints"
+    waited, noted = 0.0, False
+    while not connected():
+        if waited >= note_after and not noted:
+            say(f"waiting for a Zenoh router at {where} (mission {settings.mission}; giving "
+                f"up after {limit:g} s)")
+            noted = True
+        if waited >= limit:
+            raise FleetError(f"no Zenoh router answered at {where} within {limit:g} s "
+                             f"(start the fleet with mstc up, or a router with mstc router)")
+        await asyncio.sleep(CONNECT_POLL_S)
+        waited += CONNECT_POLL_S
+
+
+async def recorded(main: Awaitable[T], settings: ConnectionSettings, path: Path | None,
+                   source: str = "up", mcap: Path | None = None) -> T:
+    """Await ``main`` (a launcher) with a recorder of ``settings.mission`` beside it (JSON
+    Lines to ``path``, MCAP to ``mcap``); the recording ends when ``main`` does (at once if
+    the router never came up)."""
     stop, watcher = asyncio.Event(), Watcher(NullScreen())
     async with asyncio.TaskGroup() as group:
         recorder = group.create_task(watch_live(settings, watcher, stop=stop, record=path,
-                                                source=source))
+                                                record_mcap=mcap, source=source))
         try:
             return await main
         finally:

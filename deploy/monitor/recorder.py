@@ -16,7 +16,7 @@ import json
 import math
 from pathlib import Path
 from types import TracebackType
-from typing import Any, TextIO
+from typing import Any, Protocol, TextIO
 
 import msgpack
 
@@ -180,6 +180,36 @@ def read_recording(path: Path) -> Recording:
     except OSError as error:
         raise RecordingError(f"cannot read {path}: {error.strerror or error}") from error
     return Recording(header, tuple(records), tuple(errors))
+
+
+class Recorder(Protocol):
+    """Where a live feed's records are kept: this module's JSON Lines, or MCAP
+    (deploy.robotics.export.McapRecorder)."""
+
+    def write(self, record: Record) -> None: ...
+
+    def flush(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class Recorders:
+    """Several recorders fed with the same records (``--record`` and ``--record-mcap``)."""
+
+    def __init__(self, recorders: list[Recorder]) -> None:
+        self.recorders = recorders
+
+    def write(self, record: Record) -> None:
+        for recorder in self.recorders:
+            recorder.write(record)
+
+    def flush(self) -> None:
+        for recorder in self.recorders:
+            recorder.flush()
+
+    def close(self) -> None:
+        for recorder in self.recorders:
+            recorder.close()
 
 
 class RecordWriter:

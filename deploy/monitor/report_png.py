@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from deploy.figure_path import save_figure
 from deploy.monitor.model import FleetModel
 from deploy.monitor.report import MissionReport
 
@@ -27,7 +28,7 @@ def write_png(model: FleetModel, report: MissionReport, path: Path) -> None:
     _draw_curve(ax_curve, report)
     fig.suptitle(f"mission {report.mission} ({report.algo})")
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
+    save_figure(fig, path, "--png", dpi=80)
     plt.close(fig)
 
 
