@@ -77,8 +77,9 @@ async def fail_body(info: FleetInfo, robot: int, creds: Path | None = None) -> s
             replies = await bus.query(keys.hw_admin(info.mission),
                                       AdminCommand("fail", robot), AdminReply, timeout=3.0)
     except TimeoutError:
+        refused = "" if creds is None else f"; or it refuses the operator of {creds}"
         raise FleetError(f"no connection to the router at {info.endpoint} within "
-                         f"{CONNECT_TIMEOUT_S:g} s (mission {info.mission})") from None
+                         f"{CONNECT_TIMEOUT_S:g} s (mission {info.mission}{refused})") from None
     if not replies:
         raise FleetError(f"no answer from simhw of mission {info.mission} at {info.endpoint}")
     reply = replies[0].msg
