@@ -134,3 +134,15 @@ def test_mstc_credentials_makes_splits_and_rotates(tmp_path: Path,
     rotated = credentials.load(path)
     assert rotated.passwords.keys() == creds.passwords.keys() != set()
     assert not set(rotated.passwords.values()) & set(creds.passwords.values())
+
+
+def test_ros_bridge_on_a_secured_mission_needs_a_ros_router(tmp_path: Path) -> None:
+    pytest.importorskip("foxglove_schemas_protobuf")
+    path = tmp_path / "c.json"
+    credentials.generate("m", 2).save(path)
+    done = subprocess.run(
+        [sys.executable, "-m", "deploy.cli", "ros-bridge", "--connect",
+         f"tcp/127.0.0.1:{pick_free_port()}", "--mission", "m", "--credentials", str(path)],
+        capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, done.stderr
+    assert "--ros-connect" in done.stderr and "Traceback" not in done.stderr
