@@ -83,4 +83,6 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     driver = importlib.import_module(DRIVERS[family])
-    return int(driver.drive(config, options, settings_from_args(args)))
+    # Every robot logs in as itself: the router lets it write on its own keys only.
+    settings = settings_from_args(args, default_role=f"robot_{config.robot}")
+    return int(driver.drive(config, options, settings))

@@ -30,6 +30,7 @@ from bus.config import ConnectionSettings, open_session_async
 from bus.drops import DropCounter
 from bus.errors import BusClosedError, DecodeError
 from bus.inbox import BoundedFifo, Inbox, LatestWins, Policy, Received
+from bus.messages.schema import ROBOT_NAMED
 from bus.qos import DEFAULT as DEFAULT_QOS
 from bus.qos import Qos, qos_for
 
@@ -59,8 +60,15 @@ class Subscription(Generic[M]):
         self._zenoh: zenoh.Subscriber[None] | None = None
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
-        if sample.kind == zenoh.SampleKind.PUT:
-            self._inbox.push(str(sample.key_expr), sample.payload.to_bytes())
+        if sample.kind != zenoh.SampleKind.PUT:
+            return
+        key = str(sample.key_expr)
+        # Refuse a flood of huge payloads before copying them out of Zenoh's buffers.
+        if len(sample.payload) > self._bus.max_payload:
+            self._bus.drops.count(keys.kind_of(key), "oversized",
+                                  f"{key}: {len(sample.payload)} bytes")
+            return
+        self._inbox.push(key, sample.payload.to_bytes())
 
     def _on_wake(self) -> None:
         if self._handler is None:
@@ -248,12 +256,21 @@ class Bus:
         return sub
 
     def decode_or_count(self, key: str, payload: bytes, expected: Expected[M]) -> M | None:
-        """Decode, or count the drop (by key kind) and return None."""
+        """Decode, or count the drop (by key kind) and return None. A message about another
+        robot than its key names is dropped too (counted as "robot_mismatch")."""
         try:
-            return decode(payload, expected, max_size=self.max_payload)
+            msg = decode(payload, expected, max_size=self.max_payload)
         except DecodeError as error:
             self.drops.count(keys.kind_of(key), "decode", f"{key}: {error}")
             return None
+        parsed = keys.parse(key)
+        if parsed is not None and parsed.robot is not None:
+            named = ROBOT_NAMED.get((getattr(msg, "KIND", ""), parsed.kind))
+            if named is not None and getattr(msg, named) != parsed.robot:
+                self.drops.count(parsed.kind, "robot_mismatch",
+                                 f"{key}: {named} {getattr(msg, named)}")
+                return None
+        return msg
 
     # --- queries --------------------------------------------------------------------------
 

@@ -214,8 +214,10 @@ def decode(payload: bytes, expected: Expected[M], *,
         raise DecodeError(f"payload of {len(payload)} bytes exceeds {max_size}")
     try:
         raw = msgpack.unpackb(payload, raw=False, use_list=False, strict_map_key=False)
-    except (ValueError, msgpack.UnpackException) as error:
-        raise DecodeError(f"not msgpack: {error}") from error
+    # TypeError: a map key that is itself a map (unhashable); ValueError covers too deep
+    # nesting and declared lengths beyond the payload.
+    except (ValueError, TypeError, OverflowError, msgpack.UnpackException) as error:
+        raise DecodeError(f"not msgpack: {error or type(error).__name__}") from error
     if not isinstance(raw, dict):
         raise DecodeError(f"expected a msgpack map, got {type(raw).__name__}")
     kind, version = raw.get(KIND_FIELD), raw.get(VERSION_FIELD)

@@ -5,6 +5,10 @@ becomes a zenoh.Config. Defaults: client mode to a router on tcp/127.0.0.1:7447,
 the router forever so processes may start in any order, multicast scouting off (loopback
 only), and a 1 s transport lease so a hung (SIGSTOPped) process's tokens expire in ~0.75 s
 instead of ~7.5 s (docs/protocol.md, "Liveness").
+
+With ``credentials`` a client logs in as its ``role`` (docs/security.md); with ``tls`` it
+verifies the router's certificate against the CA and, given its own certificate, presents
+it (mTLS). The router's side of both is in bus.router.
 """
 
 from __future__ import annotations
@@ -26,6 +30,9 @@ import zenoh
 
 from bus.errors import ConfigError, KeyExprError
 from bus.keys import check_mission
+from bus.security import credentials
+from bus.security.credentials import ENV_CREDENTIALS, ENV_ROLE
+from bus.security.roles import parse_role
 
 _log = logging.getLogger("mstc.bus")
 
@@ -45,6 +52,28 @@ ENV_MODE = "MSTC_MODE"
 ENV_ZENOH_CONFIG = "MSTC_ZENOH_CONFIG"
 ENV_MISSION = "MSTC_MISSION"
 ENV_LEASE_MS = "MSTC_LEASE_MS"
+ENV_TLS_CA = "MSTC_TLS_CA"
+ENV_TLS_CERT = "MSTC_TLS_CERT"
+ENV_TLS_KEY = "MSTC_TLS_KEY"
+
+
+@dataclass(frozen=True)
+class TlsFiles:
+    """PEM files for tls/ endpoints: the CA that signed the other side's certificate, and
+    this side's certificate and key (the router's own; a client's for mTLS). ``mtls`` on a
+    router refuses clients without a certificate of that CA."""
+
+    ca: Path
+    cert: Path | None = None
+    key: Path | None = None
+    mtls: bool = False
+
+    def __post_init__(self) -> None:
+        if (self.cert is None) != (self.key is None):
+            raise ConfigError("a TLS certificate and its key go together")
+        for path in (self.ca, self.cert, self.key):
+            if path is not None and not path.is_file():
+                raise ConfigError(f"TLS file {path} does not exist")
 
 
 @dataclass(frozen=True)
@@ -58,6 +87,9 @@ class ConnectionSettings:
     zenoh_config: Path | None = None
     mission: str = DEFAULT_MISSION
     lease_ms: int = DEFAULT_LEASE_MS
+    credentials: Path | None = None
+    role: str | None = None
+    tls: TlsFiles | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -70,6 +102,15 @@ class ConnectionSettings:
             check_mission(self.mission)
         except KeyExprError as error:
             raise ConfigError(str(error)) from error
+        if self.credentials is not None and self.mode != "router" and self.role is None:
+            raise ConfigError("credentials need a role (--role robot_<id>, simhw, operator "
+                              "or observer)")
+        if self.role is not None:
+            parse_role(self.role)
+
+    @property
+    def secure(self) -> bool:
+        return self.credentials is not None
 
     @property
     def endpoints(self) -> tuple[str, ...]:
@@ -91,8 +132,9 @@ def _split_env(value: str | None) -> list[str]:
 
 def add_connection_arguments(parser: argparse.ArgumentParser,
                              env: Mapping[str, str] | None = None) -> None:
-    """Add --connect/--listen/--mode/--zenoh-config/--mission/--lease-ms to ``parser``.
-    Environment variables (MSTC_CONNECT and MSTC_LISTEN comma-separated) give defaults."""
+    """Add --connect/--listen/--mode/--zenoh-config/--mission/--lease-ms and the security
+    options (--credentials/--role/--tls-*) to ``parser``. Environment variables
+    (MSTC_CONNECT and MSTC_LISTEN comma-separated) give defaults."""
     env = os.environ if env is None else env
     group = parser.add_argument_group("Zenoh connection")
     group.add_argument("--connect", action="append", metavar="ENDPOINT",
@@ -115,10 +157,52 @@ def add_connection_arguments(parser: argparse.ArgumentParser,
                        default=int(env.get(ENV_LEASE_MS, DEFAULT_LEASE_MS)),
                        help=f"transport lease in ms: a hung process is dropped after "
                             f"~0.75 x this (default {DEFAULT_LEASE_MS}; env {ENV_LEASE_MS})")
+    add_security_arguments(parser, env)
 
 
-def settings_from_args(args: argparse.Namespace) -> ConnectionSettings:
-    """Build ConnectionSettings from the options added by add_connection_arguments."""
+def add_security_arguments(parser: argparse.ArgumentParser,
+                           env: Mapping[str, str] | None = None) -> None:
+    env = os.environ if env is None else env
+    group = parser.add_argument_group("Zenoh security (docs/security.md)")
+    group.add_argument("--credentials", metavar="FILE", type=Path,
+                       default=env.get(ENV_CREDENTIALS) or None,
+                       help=f"mission credentials file (JSON, mode 0600; env "
+                            f"{ENV_CREDENTIALS}); a router enforces them, a client logs in")
+    group.add_argument("--role", default=env.get(ENV_ROLE) or None,
+                       help=f"role to log in as: robot_<id>, simhw, operator or observer "
+                            f"(env {ENV_ROLE})")
+    group.add_argument("--tls-ca", metavar="PEM", type=Path,
+                       default=env.get(ENV_TLS_CA) or None,
+                       help=f"CA certificate for tls/ endpoints (env {ENV_TLS_CA})")
+    group.add_argument("--tls-cert", metavar="PEM", type=Path,
+                       default=env.get(ENV_TLS_CERT) or None,
+                       help=f"this process's certificate: the router's, or a client's for "
+                            f"mTLS (env {ENV_TLS_CERT})")
+    group.add_argument("--tls-key", metavar="PEM", type=Path,
+                       default=env.get(ENV_TLS_KEY) or None,
+                       help=f"the key of --tls-cert (env {ENV_TLS_KEY})")
+    group.add_argument("--mtls", action="store_true",
+                       help="router: refuse clients without a certificate of the CA; their "
+                            "certificate's common name must be their role")
+
+
+def tls_from_args(args: argparse.Namespace) -> TlsFiles | None:
+    ca = getattr(args, "tls_ca", None)
+    if ca is None:
+        if getattr(args, "tls_cert", None) or getattr(args, "mtls", False):
+            raise ConfigError("TLS needs --tls-ca")
+        return None
+    return TlsFiles(Path(ca), _path(args.tls_cert), _path(args.tls_key), bool(args.mtls))
+
+
+def _path(value: object) -> Path | None:
+    return None if value is None else Path(str(value))
+
+
+def settings_from_args(args: argparse.Namespace,
+                       default_role: str | None = None) -> ConnectionSettings:
+    """Build ConnectionSettings from the options added by add_connection_arguments;
+    ``default_role`` is the role of this kind of process when --role is not given."""
     return ConnectionSettings(
         mode=cast(Mode, args.mode),
         connect=tuple(args.connect or ()),
@@ -126,6 +210,9 @@ def settings_from_args(args: argparse.Namespace) -> ConnectionSettings:
         zenoh_config=Path(args.zenoh_config) if args.zenoh_config else None,
         mission=args.mission,
         lease_ms=int(args.lease_ms),
+        credentials=_path(getattr(args, "credentials", None)),
+        role=getattr(args, "role", None) or default_role,
+        tls=tls_from_args(args),
     )
 
 
@@ -160,12 +247,40 @@ def make_zenoh_config(settings: ConnectionSettings) -> zenoh.Config:
     elif settings.mode == "peer":
         # A peer must still listen somewhere for others to reach it; loopback only.
         values["listen/endpoints"] = ["tcp/127.0.0.1:0"]
+    values.update(_security_values(settings))
+    insert_values(config, values)
+    return config
+
+
+def insert_values(config: zenoh.Config, values: Mapping[str, object]) -> None:
     for key, value in values.items():
         try:
             config.insert_json5(key, json.dumps(value))
         except zenoh.ZError as error:
             raise ConfigError(f"invalid Zenoh setting {key}={value!r}: {error}") from error
-    return config
+
+
+def _security_values(settings: ConnectionSettings) -> dict[str, object]:
+    values: dict[str, object] = {}
+    if settings.credentials is not None and settings.mode != "router":
+        assert settings.role is not None  # checked by ConnectionSettings
+        role = parse_role(settings.role)
+        creds = credentials.load(settings.credentials)
+        if creds.mission != settings.mission:
+            raise ConfigError(f"credentials file {settings.credentials} is for mission "
+                              f"{creds.mission!r}, not {settings.mission!r}")
+        values["transport/auth/usrpwd/user"] = role.name
+        values["transport/auth/usrpwd/password"] = creds.password(role)
+    tls = settings.tls
+    if tls is not None:
+        side = "listen" if settings.mode == "router" else "connect"
+        values["transport/link/tls/root_ca_certificate"] = str(tls.ca)
+        if tls.cert is not None and tls.key is not None:
+            values[f"transport/link/tls/{side}_certificate"] = str(tls.cert)
+            values[f"transport/link/tls/{side}_private_key"] = str(tls.key)
+        values["transport/link/tls/enable_mtls"] = tls.mtls if side == "listen" \
+            else tls.cert is not None
+    return values
 
 
 class _Opener:
@@ -221,7 +336,12 @@ class _Opener:
 
 
 def _waiting_note(settings: ConnectionSettings) -> None:
-    _log.info("waiting for a Zenoh router at %s", ", ".join(settings.endpoints) or "-")
+    # Zenoh reports a refused log-in like an absent router: say so, or a wrong password
+    # looks like a router that never came up.
+    refused = (f" (or it refuses role {settings.role} with {settings.credentials})"
+               if settings.secure else "")
+    _log.info("waiting for a Zenoh router at %s%s", ", ".join(settings.endpoints) or "-",
+              refused)
 
 
 @contextmanager

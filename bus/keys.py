@@ -71,6 +71,13 @@ def wildcard(label: str, mission: str) -> str:
     return f"{_base(mission)}/{_family(label).path.format(robot='*', incarnation='*')}"
 
 
+def of_robot(label: str, mission: str, robot: int | None) -> str:
+    """Every key of family ``label`` about ``robot`` (all robots when None; any incarnation)."""
+    fam = _family(label)
+    chosen = "*" if robot is None or ROBOT not in fam.chunks else _robot(robot)
+    return f"{_base(mission)}/{fam.path.format(robot=chosen, incarnation='*')}"
+
+
 def everything(mission: str) -> str:
     """Every key of one mission (for recorders and monitors)."""
     return f"{_base(mission)}/**"

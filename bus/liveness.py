@@ -103,6 +103,26 @@ class FailureDetector:
             del self._peers[notice.robot]
         return True
 
+    def notice_problem(self, notice: DeathNotice) -> str | None:
+        """Why a death notice heard on the wire must not be acted on, or None.
+
+        The router lets only robots publish notices but cannot check what they say: the
+        detector must be a participant this detector knows (alive, or dead since, whose
+        re-announced verdicts stay learnable), and a known robot cannot be declared dead in
+        an incarnation it never had (which would fence its future lives in advance)."""
+        detector = notice.detected_by
+        if detector is None:
+            return "no detector"
+        if detector != self.detector and detector not in self._peers \
+                and detector not in self._dead:
+            return f"detector {detector} is not a known participant"
+        peer = self._peers.get(notice.robot)
+        newest = max(peer.incarnation if peer is not None else -1,
+                     self._dead[notice.robot].incarnation if notice.robot in self._dead else -1)
+        if newest >= 0 and notice.incarnation > newest:
+            return f"robot {notice.robot} never had incarnation {notice.incarnation}"
+        return None
+
     def set_connected(self, connected: bool, now: float) -> None:
         """Our own link to the network: while down, silence proves nothing about peers."""
         if connected and not self._connected:
@@ -220,7 +240,9 @@ class LivelinessService:
 
     def _news(self, notice: DeathNotice) -> None:
         if notice.robot == self.robot:
-            if notice.incarnation >= self.incarnation:
+            # Only a verdict on this very life fences it: a notice about a life it never
+            # had is a forgery (accept_notice), never an order to stop.
+            if notice.incarnation == self.incarnation:
                 self.fenced.set()
             return
         if self._on_death is not None:
@@ -245,8 +267,23 @@ class LivelinessService:
         self.bus.publish(keys.death(self.bus.mission, hb.robot), notice)
 
     def _on_notice(self, key: str, notice: DeathNotice) -> None:
+        self.accept_notice(notice)
+
+    def accept_notice(self, notice: DeathNotice) -> bool:
+        """Act on a death notice from the wire (subscription or state reply) unless
+        FailureDetector.notice_problem or this robot's own incarnation refuses it (counted
+        as a "forged" drop); True if it was news or fences this life."""
+        problem = self.detector.notice_problem(notice)
+        if problem is None and notice.robot == self.robot \
+                and notice.incarnation > self.incarnation:
+            problem = f"this robot never had incarnation {notice.incarnation}"
+        if problem is not None:
+            self.bus.drops.count("death", "forged", problem)
+            return False
         if self.detector.on_death_notice(notice) or notice.robot == self.robot:
             self._news(notice)
+            return True
+        return False
 
     def _on_token(self, key: str, present: bool) -> None:
         parsed = keys.parse(key)

@@ -1,4 +1,9 @@
-"""An embedded Zenoh router: a session in router mode held open until asked to stop."""
+"""An embedded Zenoh router: a session in router mode held open until asked to stop.
+
+Given credentials it admits only their roles and enforces the mission's access control
+(bus.security.acl); the user:password dictionary Zenoh reads is a private temporary file
+that exists only while the router starts.
+"""
 
 from __future__ import annotations
 
@@ -7,14 +12,18 @@ import select
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
 
 import zenoh
 
-from bus.config import ConnectionSettings, make_zenoh_config
+from bus.config import ConnectionSettings, insert_values, make_zenoh_config
 from bus.errors import RouterError
+from bus.security import acl, credentials
 
 
 def run_router(settings: ConnectionSettings, stop: threading.Event,
@@ -27,11 +36,16 @@ def run_router(settings: ConnectionSettings, stop: threading.Event,
     config = make_zenoh_config(settings)
     # exit_on_failure makes a taken port a start-up error instead of a silent retry loop.
     config.insert_json5("listen/exit_on_failure", "true")
-    try:
-        session = zenoh.open(config)
-    except zenoh.ZError as error:
-        raise RouterError(
-            f"cannot listen on {', '.join(settings.listen)}: {_short(str(error))}") from error
+    with _dictionary(settings) as secured:
+        if secured is not None:
+            creds, dictionary = secured
+            mtls = settings.tls is not None and settings.tls.mtls
+            insert_values(config, acl.router_values(creds, dictionary, by_certificate=mtls))
+        try:
+            session = zenoh.open(config)
+        except zenoh.ZError as error:
+            raise RouterError(f"cannot listen on {', '.join(settings.listen)}: "
+                              f"{_short(str(error))}") from error
     try:
         if ready is not None:
             ready()
@@ -41,6 +55,25 @@ def run_router(settings: ConnectionSettings, stop: threading.Event,
                 break
     finally:
         session.close()
+
+
+@contextmanager
+def _dictionary(
+        settings: ConnectionSettings) -> Iterator[tuple[credentials.Credentials, Path] | None]:
+    """Zenoh reads its user:password dictionary from a file, once, at start-up."""
+    if settings.credentials is None:
+        yield None
+        return
+    creds = credentials.load(settings.credentials)
+    fd, name = tempfile.mkstemp(prefix=".mstc-router-", suffix=".dict",
+                                dir=settings.credentials.parent)
+    path = Path(name)
+    try:
+        with os.fdopen(fd, "w") as out:
+            out.write(creds.dictionary())
+        yield creds, path
+    finally:
+        path.unlink(missing_ok=True)
 
 
 def _short(message: str) -> str:

@@ -23,6 +23,8 @@ from planner.errors import PlannerError
 COMMANDS: dict[str, tuple[str, str]] = {
     "plan": ("deploy.cmd_plan", "plan offline MSTC coverage of a map and print or plot it"),
     "router": ("deploy.cmd_router", "run the embedded Zenoh router"),
+    "credentials": ("deploy.cmd_credentials",
+                    "make, split per role or rotate a mission's credentials file"),
     "simhw": ("simhw.main", "run the simulated RV-400 hardware process (the world)"),
     "agent": ("agent.main", "run one robot's agent process"),
     "up": ("deploy.cmd_up", "start a local fleet: router, simhw and N agents"),

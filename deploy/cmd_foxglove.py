@@ -65,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
     from deploy.robotics.bridge import FoxgloveScreen
 
     try:
-        settings = follow_run_dir(args, settings_from_args(args))
+        # a viewer's bridge only watches: it logs in as observer unless told otherwise
+        settings = follow_run_dir(args, settings_from_args(args, default_role="observer"))
     except BusError as error:
         raise UsageError(str(error)) from error
     try:

@@ -18,6 +18,7 @@ from deploy.fleet import (
     port_reachable,
     send_signal,
 )
+from deploy.security import FleetSecurity, attach
 
 CONNECT_TIMEOUT_S = 10.0
 
@@ -28,6 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="fail the robot's body in simhw instead of killing its process")
     parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
                         help="the fleet's run directory (default: the most recent under runs/)")
+    parser.add_argument("--credentials", type=Path, default=None, metavar="FILE",
+                        help="--hw: the mission's credentials (default: $MSTC_CREDENTIALS, "
+                             "else the run directory's); kill logs in as operator")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -37,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
         raise FleetError(f"mission {info.mission} covers a tree: its robots have no simulated "
                          f"bodies to fail (kill the agent without --hw)")
     if args.hw:
-        message = asyncio.run(fail_body(info, args.robot))
+        creds = attach(args.credentials, run_dir.path, info)
+        message = asyncio.run(fail_body(info, args.robot, creds))
         print(f"mstc kill: {message} (mission {info.mission})")
         return 0
     record = info.agent(args.robot)
@@ -48,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-async def fail_body(info: FleetInfo, robot: int) -> str:
+async def fail_body(info: FleetInfo, robot: int, creds: Path | None = None) -> str:
     """Ask the fleet's simhw to fail ``robot``'s body; FleetError if it refuses or is gone."""
     from bus import keys
     from bus.bridge import Bus
@@ -65,14 +70,16 @@ async def fail_body(info: FleetInfo, robot: int) -> str:
     if not port_reachable(info.endpoint):
         raise FleetError(f"no router answers at {info.endpoint} (mission {info.mission}): "
                          f"is the fleet still running?")
-    settings = ConnectionSettings(connect=(info.endpoint,), mission=info.mission)
+    settings = FleetSecurity(creds).operator(
+        ConnectionSettings(connect=(info.endpoint,), mission=info.mission))
     try:
         async with asyncio.timeout(CONNECT_TIMEOUT_S), Bus.connect(settings) as bus:
             replies = await bus.query(keys.hw_admin(info.mission),
                                       AdminCommand("fail", robot), AdminReply, timeout=3.0)
     except TimeoutError:
+        refused = "" if creds is None else f"; or it refuses the operator of {creds}"
         raise FleetError(f"no connection to the router at {info.endpoint} within "
-                         f"{CONNECT_TIMEOUT_S:g} s (mission {info.mission})") from None
+                         f"{CONNECT_TIMEOUT_S:g} s (mission {info.mission}{refused})") from None
     if not replies:
         raise FleetError(f"no answer from simhw of mission {info.mission} at {info.endpoint}")
     reply = replies[0].msg

@@ -56,6 +56,7 @@ def follow_run_dir(args: argparse.Namespace,
     from bus.config import DEFAULT_MISSION, ENV_MISSION
     from deploy.errors import FleetError
     from deploy.fleet import RunDir, latest_run_dir
+    from deploy.security import attach
 
     explicit_mission = args.mission != DEFAULT_MISSION or ENV_MISSION in os.environ
     if args.run_dir is None and explicit_mission:
@@ -67,8 +68,9 @@ def follow_run_dir(args: argparse.Namespace,
         if args.run_dir is not None:
             raise UsageError(str(error)) from error
         return settings
+    creds = attach(settings.credentials, Path(run_dir), info)
     followed = replace(settings, mission=settings.mission if explicit_mission else info.mission,
-                       connect=settings.connect or (info.endpoint,))
+                       connect=settings.connect or (info.endpoint,), credentials=creds)
     print(f"watching mission {followed.mission} of {run_dir} via {followed.connect[0]}",
           file=sys.stderr)
     return followed
@@ -85,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
     )
 
     try:
-        settings = follow_run_dir(args, settings_from_args(args))
+        # a monitor only watches: it logs in as observer unless told otherwise
+        settings = follow_run_dir(args, settings_from_args(args, default_role="observer"))
     except BusError as error:
         raise UsageError(str(error)) from error
     if args.record is not None and not args.record.parent.is_dir():

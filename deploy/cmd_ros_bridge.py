@@ -68,11 +68,18 @@ def run(args: argparse.Namespace) -> int:
     from deploy.robotics.ros_bridge import RosScreen
 
     try:
-        settings = follow_run_dir(args, settings_from_args(args))
+        # it watches the mission as observer; ROS topics live outside the mission's keys,
+        # which a secured mission router admits nobody to write
+        settings = follow_run_dir(args, settings_from_args(args, default_role="observer"))
     except BusError as error:
         raise UsageError(str(error)) from error
+    if settings.secure and not args.ros_connect:
+        raise UsageError("the mission's router admits no ROS topics (docs/security.md): give "
+                         "--ros-connect ENDPOINT of a ROS router (rmw_zenohd), or run the "
+                         "fleet with --insecure")
     ros_settings = settings if not args.ros_connect else \
-        replace(settings, connect=tuple(args.ros_connect), listen=())
+        replace(settings, connect=tuple(args.ros_connect), listen=(), credentials=None,
+                role=None)
 
     async def main() -> None:
         stop = asyncio.Event()

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from bus.argtypes import positive, positive_int
 from bus.config import ConnectionSettings
+from deploy import security
 from deploy.errors import UsageError
 from deploy.fleet import RunDir, check_port_free, default_run_dir, unique_mission
 from deploy.settings import KillOrder
@@ -67,6 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plain", action="store_true",
                         help="plain progress lines (the only kind this command prints; "
                              "accepted so that mstc up's command lines carry over)")
+    security.add_arguments(parser)
 
 
 def kill_order(text: str) -> KillOrder:
@@ -90,15 +92,17 @@ def run(args: argparse.Namespace) -> int:
     if args.listen is not None:
         check_port_free(args.listen)  # another fleet there: one line now, not a failed router
     mission = args.mission or unique_mission()
+    run_dir = default_run_dir(mission) if args.run_dir is None else args.run_dir
+    secured = security.prepare(args, run_dir, mission, args.robots, own_router=True)
     options = TreeFleetOptions(
         tree=args.tree, robots=args.robots, algo=args.algo, mission=mission,
-        run_dir=default_run_dir(mission) if args.run_dir is None else args.run_dir,
+        run_dir=run_dir, credentials=secured.credentials,
         endpoint=args.listen or free_endpoint(), lease_ms=args.lease_ms,
         step_timeout=args.step_timeout, stall_timeout=args.stall_timeout,
         kills=tuple(args.kill), settle=args.settle)
     say = (lambda _text: None) if args.json else (lambda text: print(text, flush=True))
-    connection = ConnectionSettings(connect=(options.endpoint or "",), mission=mission,
-                                    lease_ms=options.lease_ms)
+    connection = secured.observer(ConnectionSettings(
+        connect=(options.endpoint or "",), mission=mission, lease_ms=options.lease_ms))
     outcome = run_recorded(TreeFleet(options, say).run(), connection, args.record,
                            "tree-fleet")
     lockstep, lockstep_cuts = lockstep_run(tree, args.robots, args.algo,

@@ -9,11 +9,13 @@ Exit codes: 0 complete; 1 incomplete (stalled, robots all lost, a process failed
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
 from bus.argtypes import positive, positive_int, time_scale
 from bus.config import DEFAULT_ENDPOINT, DEFAULT_LEASE_MS, ConnectionSettings
+from deploy import security
 from deploy.errors import FleetError, UsageError
 from deploy.fleet import (
     check_port_free,
@@ -116,6 +118,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record-mcap", type=Path, default=None, metavar="OUT",
                         help="record the mission as MCAP for Foxglove (docs/robotics.md; "
                              "needs the robotics extra)")
+    security.add_arguments(parser)
 
 
 def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSettings:
@@ -164,7 +167,10 @@ def run(args: argparse.Namespace) -> int:
     setup = MissionSetup.plan(settings)  # loads the map and plans: user mistakes stop here
     endpoint = endpoint_of(settings)
     started = time.monotonic()
-    connection = ConnectionSettings(connect=(endpoint,), mission=settings.mission,
-                                    lease_ms=settings.lease_ms)
+    secured = security.prepare(args, settings.run_dir, settings.mission, settings.robots,
+                               settings.own_router)
+    settings = dataclasses.replace(settings, credentials=secured.credentials)
+    connection = secured.observer(ConnectionSettings(
+        connect=(endpoint,), mission=settings.mission, lease_ms=settings.lease_ms))
     return run_recorded(launch(setup, settings, endpoint, started), connection,
                         settings.record, "up", settings.record_mcap)

@@ -69,6 +69,7 @@ class FleetInfo:
     created: float
     processes: tuple[ProcessRecord, ...] = field(default_factory=tuple)
     kind: str = "grid"
+    credentials: str | None = None  # the mission's credentials file; None: an insecure run
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)

@@ -33,6 +33,7 @@ from bus.router import READY_MARK as ROUTER_READY
 from deploy.errors import FleetError
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
 from deploy.progress import ProgressView, make_progress
+from deploy.security import FleetSecurity
 from deploy.settings import MissionSetup, UpSettings
 from deploy.summary import MissionTracker, format_summary, summarize
 from deploy.supervisor import KillSchedule, Supervisor
@@ -65,6 +66,7 @@ class Launcher:
         self.settings = settings
         self.view = view
         self.own_router = settings.own_router
+        self.security = FleetSecurity(settings.credentials)
         self.router: Child | None = None
         self.simhw: Child | None = None
         self.agents: list[Child] = []
@@ -81,7 +83,7 @@ class Launcher:
 
     def _connection(self) -> list[str]:
         return ["--mode", "client", "--connect", self.endpoint, "--mission", self.mission,
-                "--lease-ms", str(self.settings.lease_ms)]
+                "--lease-ms", str(self.settings.lease_ms), *self.security.child_args()]
 
     def _spawn(self, name: str, role: str, argv: list[str], robot: int | None = None) -> Child:
         return self.supervisor.spawn(name, role, argv, robot)
@@ -96,7 +98,8 @@ class Launcher:
     async def start_router(self) -> None:
         if self.own_router:
             self.router = self._spawn("router", "router", mstc_argv(
-                "router", "--listen", self.endpoint, "--lease-ms", str(self.settings.lease_ms)))
+                "router", "--listen", self.endpoint, "--lease-ms", str(self.settings.lease_ms),
+                *self.security.child_args()))
             await self._wait_ready(self.router, ROUTER_READY, 20.0)
 
     async def start_fleet(self) -> None:
@@ -133,7 +136,9 @@ class Launcher:
         self.supervisor.write_fleet(FleetInfo(
             mission=self.mission, endpoint=self.endpoint, own_router=self.own_router,
             world=s.world, algo=s.algo, robots=s.k, starts=s.starts,
-            time_scale=s.time_scale, created=time.time(), kind="grid"))
+            time_scale=s.time_scale, created=time.time(), kind="grid",
+            credentials=None if self.security.credentials is None
+            else str(self.security.credentials)))
 
     def shutdown(self) -> None:
         self.supervisor.shutdown()
@@ -319,8 +324,8 @@ async def launch(setup: MissionSetup, settings: UpSettings, endpoint: str, t0: f
     view = make_progress(settings.plain)
     launcher = Launcher(setup, settings, endpoint, rd, view)
     launcher.t0 = t0
-    connection = ConnectionSettings(connect=(endpoint,), mission=mission,
-                                    lease_ms=settings.lease_ms)
+    connection = launcher.security.operator(ConnectionSettings(
+        connect=(endpoint,), mission=mission, lease_ms=settings.lease_ms))
     with launcher.supervisor.signals_stop():
         try:
             await launcher.start_router()

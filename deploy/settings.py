@@ -166,6 +166,7 @@ class UpSettings:
     plain: bool = False
     record: Path | None = None
     record_mcap: Path | None = None
+    credentials: Path | None = None  # the mission's credentials (deploy.security); None: insecure
 
     @property
     def own_router(self) -> bool:

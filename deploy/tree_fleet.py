@@ -27,6 +27,7 @@ from bus.config import ConnectionSettings
 from bus.messages import MissionStatus, RadioStats, TreeReport
 from bus.router import READY_MARK as ROUTER_READY
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
+from deploy.security import FleetSecurity
 from deploy.settings import KillOrder
 from deploy.supervisor import KillSchedule, Supervisor
 from deploy.tree_observer import ObservedRun, TeamObserver
@@ -51,6 +52,7 @@ class TreeFleetOptions:
     dead_after: float = 5.0
     settle: float = 1.0  # how long a dead robot's last report may still be on its way
     kills: tuple[KillOrder, ...] = ()  # by step: SIGKILL the agent once that step is complete
+    credentials: Path | None = None  # the mission's credentials (deploy.security); None: insecure
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,7 @@ class TreeFleet:
         self.run_dir = RunDir(options.run_dir).create()
         self.supervisor = Supervisor(self.run_dir)
         self.kills = KillSchedule(options.kills)
+        self.security = FleetSecurity(options.credentials)
         self.observer = TeamObserver(tree_from_spec(options.tree), options.robots)
         self.router: Child | None = None
         self.radio: Child | None = None
@@ -95,7 +98,7 @@ class TreeFleet:
     def _connection(self) -> list[str]:
         o = self.options
         return ["--connect", self.endpoint, "--mission", o.mission, "--lease-ms",
-                str(o.lease_ms)]
+                str(o.lease_ms), *self.security.child_args()]
 
     async def run(self) -> TreeFleetOutcome:
         o = self.options
@@ -108,10 +111,10 @@ class TreeFleet:
     async def _run(self, o: TreeFleetOptions) -> TreeFleetOutcome:
         self.router = self._spawn("router", "router", mstc_argv(
             "router", "--listen", self.endpoint, "--lease-ms", str(o.lease_ms),
-            "--exit-with-parent"))
+            "--exit-with-parent", *self.security.child_args()))
         await self.supervisor.wait_ready(self.router, ROUTER_READY, 20.0)
-        settings = ConnectionSettings(connect=(self.endpoint,), mission=o.mission,
-                                      lease_ms=o.lease_ms)
+        settings = self.security.operator(ConnectionSettings(
+            connect=(self.endpoint,), mission=o.mission, lease_ms=o.lease_ms))
         async with Bus.connect(settings) as bus:
             bus.subscribe(keys.all_tree_outboxes(o.mission), TreeReport,
                           lambda _k, r: self._on_transmission(r),
@@ -148,7 +151,7 @@ class TreeFleet:
         self.supervisor.write_fleet(FleetInfo(
             mission=o.mission, endpoint=self.endpoint, own_router=True, world=o.tree,
             algo=o.algo, robots=o.robots, starts=(), time_scale=0.0, created=time.time(),
-            kind="tree"))
+            kind="tree", credentials=None if o.credentials is None else str(o.credentials)))
         self.say(f"fleet up: mission {o.mission} on {self.endpoint}, radio and {o.robots} "
                  f"agents ({o.algo}), run dir {self.run_dir.path}")
 

@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
     options = ServerOptions(time_scale=args.time_scale, frozen_hold_s=args.frozen_hold,
                             dead_bodies=args.dead_bodies)
     try:
-        settings = settings_from_args(args)
+        settings = settings_from_args(args, default_role="simhw")
         asyncio.run(serve(settings, world, make_clock(args.time_scale), Kinematics(),
                           options, on_ready=_announce))
     except BusError as error:

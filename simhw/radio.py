@@ -48,9 +48,11 @@ class RadioRelay:
 
     def stats(self) -> RadioStats:
         c = self.model.counters
+        # the bus itself drops a transmission whose sender is not its outbox's robot
+        spoofed = self.spoofed + self.bus.drops.total("tree/outbox", "robot_mismatch")
         return RadioStats(transmissions=c.transmissions, deliveries=c.deliveries,
                           refused=c.refused, pending=self.model.pending,
-                          unlocated=c.unlocated, spoofed=self.spoofed)
+                          unlocated=c.unlocated, spoofed=spoofed)
 
     def _on_transmission(self, key: str, report: TreeReport) -> None:
         parsed = keys.parse(key)
@@ -86,7 +88,7 @@ async def serve(args: argparse.Namespace, tree: Tree) -> None:
     for sig in (signal.SIGTERM, signal.SIGINT):
         with contextlib.suppress(NotImplementedError, RuntimeError):
             loop.add_signal_handler(sig, stop.set)
-    settings = settings_from_args(args)
+    settings = settings_from_args(args, default_role="simhw")
     async with Bus.connect(settings) as bus:
         relay = RadioRelay(bus, tree, args.robots)
         relay.bind()

@@ -148,10 +148,8 @@ class OfflineAgent(BodyAgent):
             elif isinstance(msg, AgentState) and msg.robot != self.robot:
                 self.peers.on_state(rx.key, msg)
             elif isinstance(msg, DeathNotice):
-                if msg.robot == self.robot and msg.incarnation >= self.incarnation:
-                    self.liveness.fenced.set()
-                elif msg.robot != self.robot:
-                    self._on_death(msg)
+                # the same checks as a notice heard live: a known detector, a real life
+                self.liveness.accept_notice(msg)
             elif isinstance(msg, MissionStatus):
                 self.peers.on_mission(rx.key, msg)
             elif isinstance(msg, ReplanReport):

@@ -5,7 +5,9 @@ wire), the key families it travels on, its QoS class and the wire generation its
 changed in. ``bus.keys`` builds and parses every key from the families, ``bus.qos`` gives each
 QoS class its Zenoh settings, ``bus.codec`` knows exactly the kinds and records listed here.
 Adding a message type is a frozen dataclass in its subject's module and one row in
-:data:`KINDS` (docs/protocol.md, "Adding a message type").
+:data:`KINDS` (docs/protocol.md, "Adding a message type"). Each key family also says who
+may write on it (:class:`Access`): ``bus.security.acl`` turns that into the router's access
+rules, and ``bus.bridge`` drops a message whose robot id disagrees with its key.
 
 Field types are limited to what the codec checks strictly: int, float, str, bool, bytes,
 None, Literal[...], tuple[...] (fixed or ``tuple[X, ...]``), dict[str|int, X], unions, and
@@ -18,7 +20,7 @@ import enum
 import functools
 import re
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 from bus.messages.hardware import AdminCommand, AdminReply, HwCommand, HwReply
 from bus.messages.lifecycle import DeathNotice, Heartbeat, MissionStatus, RobotEvent, RobotStatus
@@ -57,24 +59,55 @@ class QosClass(enum.Enum):
 ROBOT, INCARNATION = "{robot}", "{incarnation}"
 _ID_CHUNKS = (ROBOT, INCARNATION)
 
+# Who may write: OWN is the robot whose id is the key's {robot} chunk, ROBOTS any robot,
+# the others name a role (bus.security.roles). Reading is open to every authenticated role.
+Audience = Literal["own", "robots", "simhw", "operator", "everyone"]
+OWN: Audience = "own"
+ROBOTS: Audience = "robots"
+SIMHW: Audience = "simhw"
+OPERATOR: Audience = "operator"
+EVERYONE: Audience = "everyone"
+
+
+@dataclass(frozen=True)
+class Access:
+    """Who may put samples on a family's keys, serve it as a queryable (declare it and
+    reply), query it, and declare liveliness tokens on it; nobody else may."""
+
+    put: tuple[Audience, ...] = ()
+    serve: tuple[Audience, ...] = ()
+    ask: tuple[Audience, ...] = ()
+    token: tuple[Audience, ...] = ()
+
+
+NOBODY = Access()
+BY_OWN = Access(put=(OWN,))
+BY_SIMHW = Access(put=(SIMHW,))
+SERVED_BY_ROBOTS = Access(serve=(ROBOTS,), ask=(EVERYONE,))
+
 
 @dataclass(frozen=True)
 class KeyFamily:
     """Keys ``mstc/<mission>/<path>``; ``{robot}`` and ``{incarnation}`` chunks of ``path``
-    are non-negative ints. ``label`` is the kind keys.parse reports (drop counters, logs)."""
+    are non-negative ints. ``label`` is the kind keys.parse reports (drop counters, logs).
+    ``robot_field``: the field of a kind listed on this family that must equal the key's
+    ``{robot}`` (None where the key names a receiver that no field names)."""
 
     label: str
     path: str
+    access: Access = NOBODY
+    robot_field: str | None = "robot"
 
     @functools.cached_property
     def chunks(self) -> tuple[str, ...]:
         return tuple(self.path.split("/"))
 
 
-def family(path: str, label: str | None = None) -> KeyFamily:
+def family(path: str, label: str | None = None, access: Access = NOBODY, *,
+           robot_field: str | None = "robot") -> KeyFamily:
     """A key family; its label is its path without the id chunks unless given."""
     return KeyFamily(label or "/".join(c for c in path.split("/") if c not in _ID_CHUNKS),
-                     path)
+                     path, access, robot_field)
 
 
 @dataclass(frozen=True)
@@ -94,53 +127,65 @@ class Kind:
 
 
 C = QosClass
-HW_CMD = family("hw/{robot}/cmd")  # queryable (simhw): HwCommand -> HwReply
-HW_ADMIN = family("hw/admin")  # queryable (simhw): AdminCommand -> AdminReply
+# queryable (simhw): HwCommand -> HwReply; only the robot itself commands its body
+HW_CMD = family("hw/{robot}/cmd", access=Access(serve=(SIMHW,), ask=(OWN,)))
+# queryable (simhw): AdminCommand -> AdminReply; failure injection is the operator's alone
+HW_ADMIN = family("hw/admin", access=Access(serve=(SIMHW,), ask=(OPERATOR,)))
 
 KINDS: tuple[Kind, ...] = (
     # a robot's life (bus.messages.lifecycle)
-    Kind(Heartbeat, (family("hb/{robot}"),), C.HEARTBEAT),
-    Kind(RobotStatus, (family("status/{robot}"),), C.CRITICAL),
-    Kind(RobotEvent, (family("event/{robot}"),), C.CRITICAL),
-    Kind(DeathNotice, (family("death/{robot}"),), C.CRITICAL),  # <robot>: the dead one
-    Kind(MissionStatus, (family("mission"), family("state/mission")), C.CRITICAL),
+    Kind(Heartbeat, (family("hb/{robot}", access=BY_OWN),), C.HEARTBEAT),
+    Kind(RobotStatus, (family("status/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(RobotEvent, (family("event/{robot}", access=BY_OWN),), C.CRITICAL),
+    # <robot>: the dead one; any robot may declare a death (bus.liveness checks the detector)
+    Kind(DeathNotice, (family("death/{robot}", access=Access(put=(ROBOTS,))),), C.CRITICAL),
+    # the verdict is the robots'; a tree fleet's launcher announces its set-up on it too
+    Kind(MissionStatus, (family("mission", access=Access(put=(ROBOTS, OPERATOR))),
+                         family("state/mission", access=SERVED_BY_ROBOTS)), C.CRITICAL),
     # what a robot covered (bus.messages.progress)
-    Kind(Progress, (family("progress/{robot}"),), C.STREAM),
+    Kind(Progress, (family("progress/{robot}", access=BY_OWN),), C.STREAM),
     # a lost look step would make a report see a coverage revisit
-    Kind(LookStep, (family("look/{robot}"),), C.CRITICAL),
+    Kind(LookStep, (family("look/{robot}", access=BY_OWN),), C.CRITICAL),
     # only the reply of the state/<r> queryable, which also answers the robot's kept messages
-    Kind(AgentState, (family("state/{robot}"),), C.STREAM, since=2),
+    Kind(AgentState, (family("state/{robot}", access=Access(serve=(OWN,), ask=(EVERYONE,))),),
+         C.STREAM, since=2),
     # a survivor's input to the re-plan after a death: the others wait for it
-    Kind(ReplanReport, (family("replan/{robot}"),), C.CRITICAL, since=3),
+    Kind(ReplanReport, (family("replan/{robot}", access=BY_OWN),), C.CRITICAL, since=3),
     # the simulated hardware (bus.messages.hardware)
     Kind(HwCommand, (HW_CMD,), C.CONTROL),
     Kind(HwReply, (HW_CMD,), C.CONTROL),
     Kind(AdminCommand, (HW_ADMIN,), C.CONTROL),
     Kind(AdminReply, (HW_ADMIN,), C.CONTROL),
     # the simulator's ground truth (bus.messages.world)
-    Kind(GroundTruthPose, (family("sim/pose/{robot}"),), C.STREAM),
-    Kind(CoverEvent, (family("sim/cover/{robot}"),), C.STREAM),
-    Kind(BumpEvent, (family("sim/bump/{robot}"),), C.STREAM),
-    Kind(WorldState, (family("sim/world"),), C.BULK, since=2),  # queryable (simhw)
+    Kind(GroundTruthPose, (family("sim/pose/{robot}", access=BY_SIMHW),), C.STREAM),
+    Kind(CoverEvent, (family("sim/cover/{robot}", access=BY_SIMHW),), C.STREAM),
+    Kind(BumpEvent, (family("sim/bump/{robot}", access=BY_SIMHW),), C.STREAM),
+    Kind(WorldState, (family("sim/world", access=Access(serve=(SIMHW,), ask=(EVERYONE,))),),
+         C.BULK, since=2),
     # ORMSTC (bus.messages.ormstc): one priority for every ORMSTC kind keeps each sender's
     # messages in order across keys; <robot> is the sender
-    Kind(OrmstcTreeEdge, (family("ormstc/tree/{robot}"),), C.CRITICAL),
-    Kind(OrmstcClaim, (family("ormstc/claim/{robot}"),), C.CRITICAL),
-    Kind(OrmstcConnection, (family("ormstc/conn/{robot}"),), C.CRITICAL),
-    Kind(OrmstcStart, (family("ormstc/start/{robot}"),), C.CRITICAL),
-    Kind(OrmstcDeadRobot, (family("ormstc/dead/{robot}"),), C.CRITICAL),
-    Kind(OrmstcCompletion, (family("ormstc/done/{robot}"),), C.CRITICAL),
-    Kind(OrmstcWithdrawal, (family("ormstc/withdraw/{robot}"),), C.CRITICAL),
+    Kind(OrmstcTreeEdge, (family("ormstc/tree/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(OrmstcClaim, (family("ormstc/claim/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(OrmstcConnection, (family("ormstc/conn/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(OrmstcStart, (family("ormstc/start/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(OrmstcDeadRobot, (family("ormstc/dead/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(OrmstcCompletion, (family("ormstc/done/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(OrmstcWithdrawal, (family("ormstc/withdraw/{robot}", access=BY_OWN),), C.CRITICAL),
     # connected tree coverage (bus.messages.tree): a lost report stalls the whole team's
     # step, so never drop it; the outbox is the robot's, only the radio fills inboxes
-    Kind(TreeReport, (family("tree/robot/{robot}/outbox", "tree/outbox"),
-                      family("tree/robot/{robot}/inbox", "tree/inbox")), C.CRITICAL, since=3),
-    Kind(RadioStats, (family("tree/radio"),), C.CONTROL, since=2),  # queryable (radio)
+    # (an outbox carries relayed reports too: its robot is the sender)
+    Kind(TreeReport, (family("tree/robot/{robot}/outbox", "tree/outbox", BY_OWN,
+                             robot_field="sender"),
+                      family("tree/robot/{robot}/inbox", "tree/inbox", BY_SIMHW,
+                             robot_field=None)), C.CRITICAL, since=3),
+    # queryable (the radio, which runs with the simulator's role)
+    Kind(RadioStats, (family("tree/radio", access=Access(serve=(SIMHW,), ask=(EVERYONE,))),),
+         C.CONTROL, since=2),
 )
 
 # Families that carry no kind of their own: the incarnation is in the liveliness key because
 # tokens aggregate per key (docs/protocol.md, "Keys").
-ALIVE = family("alive/{robot}/{incarnation}")
+ALIVE = family("alive/{robot}/{incarnation}", access=Access(token=(OWN,)))
 
 # Dataclasses that appear nested inside messages.
 RECORDS: tuple[type[Any], ...] = (RobotTruth,)
@@ -188,6 +233,13 @@ FAMILIES: tuple[KeyFamily, ...] = _families()
 MESSAGE_TYPES: dict[str, type[Any]] = _registry()  # KIND -> class
 KIND_SINCE: dict[str, int] = {kind.name: kind.since for kind in KINDS}
 RECORD_TYPES: frozenset[type[Any]] = frozenset(RECORDS)
+# (kind, key label) -> the message field that must equal the key's {robot}: Zenoh's access
+# control stops robot 3 from writing on robot 5's keys, this stops it from writing robot 5's
+# messages on its own.
+ROBOT_NAMED: dict[tuple[str, str], str] = {
+    (kind.name, fam.label): fam.robot_field for kind in KINDS for fam in kind.keys
+    if ROBOT in fam.chunks and fam.robot_field is not None
+    and fam.robot_field in getattr(kind.type, "__dataclass_fields__", {})}
 
 
 def version_problem(kind: str, version: object) -> str | None:

@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from bus.messages.base import Pose, SubCell
+from bus.messages.base import Pose, SubCell, inflate
 
 
 @dataclass(frozen=True)
@@ -78,6 +78,7 @@ class WorldState:
 RobotArray = npt.NDArray[np.uint8]
 
 
+
 def make_world_state(
     map_name: str, free: npt.NDArray[np.bool_], visits: npt.NDArray[np.integer[Any]],
     robots: tuple[RobotTruth, ...], sim_time: float, time_scale: float, *,
@@ -106,25 +107,36 @@ def make_world_state(
                               + down.astype(np.uint8).tobytes()))
 
 
+def _cells(state: WorldState) -> int:
+    """The sub-cell count of ``state.shape``; ValueError unless its free mask holds them
+    (which also bounds what a forged shape can make us allocate)."""
+    h, w = state.shape
+    if h < 0 or w < 0 or h * w > len(state.free) * 8:
+        raise ValueError(f"shape {state.shape} does not fit a free mask of "
+                         f"{len(state.free)} bytes")
+    return h * w
+
+
 def world_free(state: WorldState) -> npt.NDArray[np.bool_]:
     """The free mask of a WorldState as a bool array of ``state.shape``."""
-    count = state.shape[0] * state.shape[1]
+    count = _cells(state)
     bits = np.unpackbits(np.frombuffer(state.free, dtype=np.uint8), count=count)
     return bits.astype(bool).reshape(state.shape)
 
 
 def world_visits(state: WorldState) -> npt.NDArray[np.uint8]:
     """The visit counts of a WorldState as a uint8 array of ``state.shape``."""
-    return _unzip(state.visits, state.shape[0] * state.shape[1]).reshape(state.shape)
+    return _unzip(state.visits, _cells(state)).reshape(state.shape)
 
 
 def world_first(state: WorldState) -> RobotArray:
     """Who entered each sub-cell first (NO_ROBOT: nobody yet), an array of ``state.shape``."""
-    return _unzip(state.first, state.shape[0] * state.shape[1]).reshape(state.shape)
+    return _unzip(state.first, _cells(state)).reshape(state.shape)
 
 
 def world_crossed(state: WorldState) -> tuple[RobotArray, RobotArray]:
     """The first crossers of cell borders as (right, down) arrays (NO_ROBOT: nobody)."""
+    _cells(state)
     h, w = state.shape[0] // 2, state.shape[1] // 2
     n_right, n_down = h * max(w - 1, 0), max(h - 1, 0) * w
     raw = _unzip(state.crossed, n_right + n_down)
@@ -132,11 +144,9 @@ def world_crossed(state: WorldState) -> tuple[RobotArray, RobotArray]:
 
 
 def _unzip(data: bytes, size: int) -> npt.NDArray[np.uint8]:
-    """ValueError (not a zlib error) for a payload that does not unpack to ``size`` bytes."""
-    try:
-        raw = np.frombuffer(zlib.decompress(data), dtype=np.uint8)
-    except zlib.error as error:
-        raise ValueError(f"packed array does not decompress: {error}") from error
+    """ValueError (not a zlib error) for a payload that does not unpack to ``size`` bytes;
+    decompression stops one byte past ``size``, so a zip bomb costs nothing."""
+    raw = np.frombuffer(inflate(data, size + 1), dtype=np.uint8)
     if raw.size != size:
         raise ValueError(f"packed array has {raw.size} bytes, expected {size}")
     return raw

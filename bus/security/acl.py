@@ -1,0 +1,99 @@
+"""The router's authentication and access control for one mission, derived from the
+``access`` column of the wire schema (bus.messages.schema): nothing here lists keys by hand.
+
+Every authenticated role may subscribe to, query the liveliness of, and receive everything of
+its mission; writing (put, serving a queryable and replying, querying, liveliness tokens) is
+allowed exactly where the schema names the role. Everything else is denied, and so is every
+key outside ``mstc/<mission>/`` (the admin space included). Zenoh's ACL only sees the
+transport a message came in on, so it cannot tell what a robot says inside its own keys:
+bus.bridge and bus.liveness check that.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from bus import keys
+from bus.messages.schema import ALIVE, FAMILIES, Audience, KeyFamily
+from bus.security.credentials import Credentials
+from bus.security.roles import Role
+
+# Zenoh's ACL message types
+_READ_IN = ("declare_subscriber", "declare_liveliness_subscriber", "liveliness_query")
+_ALL = ("put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
+        "liveliness_token", "declare_liveliness_subscriber", "liveliness_query")
+_VERBS: dict[str, tuple[str, ...]] = {
+    "put": ("put",),
+    "serve": ("declare_queryable", "reply"),
+    "ask": ("query",),
+    "token": ("liveliness_token",),
+}
+
+
+def _covers(audience: Audience, role: Role) -> bool:
+    if audience in ("own", "robots"):
+        return role.kind == "robot"
+    return audience == "everyone" or audience == role.kind
+
+
+def grants(role: Role, mission: str,
+           families: Iterable[KeyFamily] = (*FAMILIES, ALIVE)) -> dict[str, list[str]]:
+    """Verb -> key expressions ``role`` may use it on (verbs: put, serve, ask, token)."""
+    out: dict[str, list[str]] = {verb: [] for verb in _VERBS}
+    for fam in families:
+        for verb in _VERBS:
+            audiences: tuple[Audience, ...] = getattr(fam.access, verb)
+            for audience in audiences:
+                if _covers(audience, role):
+                    robot = role.robot if audience == "own" else None
+                    key = keys.of_robot(fam.label, mission, robot)
+                    if key not in out[verb]:
+                        out[verb].append(key)
+    return {verb: found for verb, found in out.items() if found}
+
+
+def access_control(mission: str, roles: Iterable[Role], *,
+                   by_certificate: bool = False) -> dict[str, Any]:
+    """Zenoh's ``access_control`` section. A role is its user name; with ``by_certificate``
+    (mTLS) its TLS client certificate's common name must be the same name as well."""
+    everything = keys.everything(mission)
+    rules: list[dict[str, Any]] = [
+        {"id": "read", "messages": list(_READ_IN), "flows": ["ingress"],
+         "permission": "allow", "key_exprs": [everything]},
+        {"id": "receive", "messages": list(_ALL), "flows": ["egress"],
+         "permission": "allow", "key_exprs": [everything]},
+    ]
+    subjects: list[dict[str, Any]] = []
+    policies: list[dict[str, Any]] = []
+    names = []
+    for role in roles:
+        subject: dict[str, Any] = {"id": role.name, "usernames": [role.name]}
+        if by_certificate:
+            subject["cert_common_names"] = [role.name]
+        subjects.append(subject)
+        names.append(role.name)
+        own_rules = []
+        for verb, key_exprs in grants(role, mission).items():
+            rule_id = f"{role.name}/{verb}"
+            rules.append({"id": rule_id, "messages": list(_VERBS[verb]),
+                          "flows": ["ingress"], "permission": "allow",
+                          "key_exprs": key_exprs})
+            own_rules.append(rule_id)
+        if own_rules:
+            policies.append({"id": role.name, "rules": own_rules, "subjects": [role.name]})
+    policies.append({"id": "readers", "rules": ["read", "receive"], "subjects": names})
+    return {"enabled": True, "default_permission": "deny", "rules": rules,
+            "subjects": subjects, "policies": policies}
+
+
+def router_values(creds: Credentials, dictionary_file: Path, *,
+                  by_certificate: bool = False) -> dict[str, Any]:
+    """The router's Zenoh settings: log-ins checked against ``dictionary_file`` (written from
+    ``creds``), and the access control of ``creds.mission`` for the roles listed there."""
+    return {
+        "transport/auth/usrpwd/dictionary_file": str(dictionary_file),
+        "access_control": access_control(creds.mission, creds.roles,
+                                         by_certificate=by_certificate),
+    }
