@@ -147,3 +147,23 @@ def run_plan(plan: Plan, failures: Mapping[int, int], delay: int = 0) -> OracleR
 
 def walks_as_subcells(plan: Plan, result: OracleRun) -> dict[int, list[SubCell]]:
     return {r: [plan.cycle.at(i) for i in walk] for r, walk in result.walks.items()}
+
+
+def ordered_walks(plan: Plan, result: OracleRun) -> list[list[SubCell]]:
+    """The oracle's walks as sub-cells, in the plan's robot order."""
+    by_robot = walks_as_subcells(plan, result)
+    return [by_robot[rp.robot] for rp in plan.robots]
+
+
+def fit_failures(plan: Plan, moves: Mapping[int, int]) -> dict[int, int]:
+    """Failure times under which the oracle gives each dead robot ``moves`` moves (earlier
+    deaths first; a robot that died waiting or taking over is fitted by search)."""
+    failures: dict[int, int] = {}
+    for robot in sorted(moves, key=lambda r: moves[r]):
+        for when in range(moves[robot], 4 * plan.cycle.n):
+            if len(run_plan(plan, {**failures, robot: when}).walks[robot]) - 1 == moves[robot]:
+                failures[robot] = when
+                break
+        else:
+            raise AssertionError(f"no failure time gives robot {robot} {moves[robot]} moves")
+    return failures
