@@ -109,3 +109,62 @@ async def test_the_runner_learns_the_dead_robots_coverage_before_it_takes_over()
     assert started == ["walking to cycle index 5"], started
     assert refreshes and refreshes[0] == 3, "refreshed once its own walk was done"
     assert body.steps == [cycle.at(i) for i in (1, 2, 3, 4, 5)]
+
+
+def test_a_robots_own_death_notice_fences_it_and_is_no_peers_death() -> None:
+    heard: list[DeathNotice] = []
+    service = LivelinessService(cast(Any, FakeBus()), 0, 2, on_death=heard.append)
+    service._on_notice("mstc/t/death/0", DeathNotice(0, 1, 1, "heartbeat", 0.0))
+    assert not service.fenced.is_set(), "an older life's death does not fence this one"
+    service._on_notice("mstc/t/death/0", DeathNotice(0, 2, 1, "heartbeat", 0.0))
+    assert service.fenced.is_set() and heard == []
+
+
+def test_a_vanished_token_of_an_unknown_fenced_life_stays_dead() -> None:
+    from bus.liveness import FailureDetector
+
+    detector = FailureDetector(timeout=1.0)
+    detector.on_death_notice(DeathNotice(1, 3, 0, "token", 0.0))
+    detector.on_token_deleted(1, 3, now=1.0)
+    assert detector.alive() == {}, "a fenced life is not brought back by its token's end"
+    detector.on_token_deleted(2, 1, now=1.0)
+    assert detector.alive() == {2: 1}, "an unknown life whose token vanished is watched"
+
+
+def test_the_mission_verdict_is_final_and_complete_covers_everything() -> None:
+    from bus.messages import MissionStatus
+
+    plan = plan_of(strip_cycle(3), NB)
+    peers = PeerTable(robot=0, k=3, drops=DropCounter())
+    peers.on_mission("mstc/t/mission", MissionStatus("running", "", {}))
+    assert not peers.verdict.is_set()
+    machine = OfflineRobot(plan, 0)
+    peers.attach(machine)
+    peers.on_mission("mstc/t/mission", MissionStatus("complete", "", {}))
+    assert peers.verdict.is_set() and machine.all_covered
+    peers.on_mission("mstc/t/mission", MissionStatus("running", "stale", {}))
+    assert peers.mission is not None and peers.mission.state == "complete"
+
+
+def test_robots_known_dead_need_no_plan_digest() -> None:
+    from bus.messages import RobotStatus
+
+    peers = PeerTable(robot=0, k=3, drops=DropCounter())
+    peers.on_status("mstc/t/status/0", RobotStatus(0, 1, (0, 0), "nb", "abc", "x"))
+    assert peers.missing_digests() == [1, 2]
+    peers.on_death(DeathNotice(2, 1, 0, "token", 0.0))
+    assert peers.missing_digests() == [1]
+
+
+def test_news_wakes_the_waiters() -> None:
+    from bus.messages import RobotStatus
+
+    peers = PeerTable(robot=0, k=3, drops=DropCounter())
+    peers.on_status("mstc/t/status/1", RobotStatus(1, 1, (0, 0), "nb", "", "x"))
+    assert peers.changed.is_set(), "a new status is news"
+    peers.changed.clear()
+    peers.on_death(DeathNotice(1, 1, 0, "token", 0.0))
+    assert peers.changed.is_set(), "a death is news"
+    peers.changed.clear()
+    peers.on_death(DeathNotice(1, 1, 2, "heartbeat", 1.0))
+    assert not peers.changed.is_set(), "the same life's death again is no news"
