@@ -250,10 +250,10 @@ def mutate_modules(modules: list[str], limit: int, seed: int, timeout: float) ->
         shutil.rmtree(copy)
 
 
-def run_named(with_fleet: bool, timeout: float) -> None:
+def run_named(with_fleet: bool, timeout: float, only: str = "") -> None:
     copy = scratch_copy()
     try:
-        for m in NAMED:
+        for m in (m for m in NAMED if only in m.what):
             if m.fleet and not with_fleet:
                 print(f"- {m.what}: skipped (needs --with-fleet)")
                 continue
@@ -278,9 +278,11 @@ def main() -> None:
     parser.add_argument("--named", action="store_true", help="issue 15's table only")
     parser.add_argument("--with-fleet", action="store_true",
                         help="also the named mutants whose guard starts real processes")
+    parser.add_argument("--only", default="", metavar="TEXT",
+                        help="the named mutants whose description contains TEXT")
     args = parser.parse_args()
     if args.named:
-        run_named(args.with_fleet, args.timeout)
+        run_named(args.with_fleet, args.timeout, args.only)
     else:
         mutate_modules(args.module or sorted(MODULES), args.max, args.seed, args.timeout)
 
