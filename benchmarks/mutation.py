@@ -5,6 +5,7 @@
     .venv/bin/python benchmarks/mutation.py --module bus/liveness.py
     .venv/bin/python benchmarks/mutation.py --named               # issue 15's table only
     .venv/bin/python benchmarks/mutation.py --named --with-fleet  # those with real processes too
+    .venv/bin/python benchmarks/mutation.py --module deploy/supervisor.py --with-fleet
 
 Each mutant is written into a scratch copy of the repository (the worktree is never touched)
 and the module's fast tests run there with ``python -m pytest -x`` (the copy comes first on
@@ -52,6 +53,11 @@ MODULES: dict[str, list[str]] = {
     "deploy/settings.py": ["tests/test_kill_schedule.py", "tests/test_fleet_unit.py"],
     "planner/ormstc/machine.py": ["tests/test_ormstc_sim.py", "tests/test_ormstc_claims.py",
                                   "tests/test_ormstc_walk.py"],
+}
+
+# With --with-fleet, the tests with real processes that guard a module as well.
+FLEET_TESTS: dict[str, list[str]] = {
+    "deploy/supervisor.py": ["tests/test_up_negative.py", "tests/test_fleet_up.py"],
 }
 
 
@@ -220,7 +226,8 @@ def run_tests(copy: Path, tests: list[str] | tuple[str, ...], timeout: float,
     return done.returncode != 0, last
 
 
-def mutate_modules(modules: list[str], limit: int, seed: int, timeout: float) -> None:
+def mutate_modules(modules: list[str], limit: int, seed: int, timeout: float,
+                   with_fleet: bool = False) -> None:
     copy = scratch_copy()
     try:
         for module in modules:
@@ -231,13 +238,15 @@ def mutate_modules(modules: list[str], limit: int, seed: int, timeout: float) ->
                                                                      min(limit, len(every))))
             killed, survivors = 0, []
             started = time.monotonic()
-            ok, why = run_tests(copy, MODULES[module], timeout)
+            tests = MODULES[module] + (FLEET_TESTS.get(module, []) if with_fleet else [])
+            fast = not (with_fleet and module in FLEET_TESTS)
+            ok, why = run_tests(copy, tests, timeout, fast)
             if ok:
                 print(f"{module}: its tests fail unmutated ({why}); skipped")
                 continue
             for _number, what, source in picked:
                 path.write_text(source)
-                dead, why = run_tests(copy, MODULES[module], timeout)
+                dead, why = run_tests(copy, tests, timeout, fast)
                 path.write_text(original)
                 killed += dead
                 if not dead:
@@ -277,14 +286,16 @@ def main() -> None:
     parser.add_argument("--timeout", type=float, default=300.0, help="per test run, seconds")
     parser.add_argument("--named", action="store_true", help="issue 15's table only")
     parser.add_argument("--with-fleet", action="store_true",
-                        help="also the named mutants whose guard starts real processes")
+                        help="also the tests with real processes (named mutants, and the "
+                             "modules of FLEET_TESTS)")
     parser.add_argument("--only", default="", metavar="TEXT",
                         help="the named mutants whose description contains TEXT")
     args = parser.parse_args()
     if args.named:
         run_named(args.with_fleet, args.timeout, args.only)
     else:
-        mutate_modules(args.module or sorted(MODULES), args.max, args.seed, args.timeout)
+        mutate_modules(args.module or sorted(MODULES), args.max, args.seed, args.timeout,
+                       args.with_fleet)
 
 
 if __name__ == "__main__":

@@ -3,6 +3,10 @@ KillOrder): each order is handed out once, when its moment has come, and not bef
 
 from __future__ import annotations
 
+import argparse
+
+import pytest
+
 from deploy.settings import parse_kill
 from deploy.supervisor import KillSchedule
 
@@ -32,3 +36,12 @@ def test_an_order_by_step_fires_for_tree_missions() -> None:
     schedule = KillSchedule([parse_kill("1@3").__class__(robot=1, step=4)])
     assert schedule.due(step=3) == []
     assert [o.robot for o in schedule.due(step=4)] == [1]
+
+
+def test_progress_kills_accept_exactly_0_to_100_percent() -> None:
+    assert parse_kill("0@progress=0").percent == 0.0
+    assert parse_kill("0@progress=100").percent == 100.0
+    assert parse_kill("0@100%").percent == 100.0
+    for text in ("0@progress=100.01", "0@100.5%"):
+        with pytest.raises(argparse.ArgumentTypeError, match=r"0\.\.100"):
+            parse_kill(text)
