@@ -52,9 +52,11 @@ def test_up_exits_1_when_every_robot_is_killed(free_port: int, tmp_path: Path) -
 
 
 def test_up_exits_1_when_the_mission_stalls(free_port: int, tmp_path: Path) -> None:
-    # 1000 wall seconds per simulated one: no forward step ends within the stall timeout
+    # 1000 wall seconds per simulated one: no forward step ends within the stall timeout.
+    # The agents give up on their bodies 10 s in (they would report "every agent has
+    # stopped"), so a launcher that never sees the stall fails this test that soon.
     result = run_up(free_port, tmp_path / "run", "--time-scale", "0.001",
-                    "--stall-timeout", "3")
+                    "--stall-timeout", "2", "--agent-arg=--hw-timeout=10")
     assert result.returncode == 1, result.stdout + result.stderr
     assert "mission stalled: no new sub-cell covered" in result.stdout
     assert "mission started" in result.stdout, "the stall clock runs only once started"
