@@ -272,3 +272,18 @@ def test_the_region_end_mutant_of_the_takeover_target_is_caught(
                 except AssertionError:
                     caught += 1
     assert caught > 0
+
+
+def test_check_replayable_refuses_what_the_takeover_semantics_cannot_run() -> None:
+    import dataclasses
+
+    from planner.errors import UnsupportedPlanError
+    from planner.offline.machine import check_replayable
+
+    plan = plan_of(strip_cycle(3), NB)
+    check_replayable(plan)
+    fast = dataclasses.replace(plan.robots[1], speed=2.0)
+    with pytest.raises(UnsupportedPlanError, match="speed"):
+        check_replayable(dataclasses.replace(plan, robots=(plan.robots[0], fast, plan.robots[2])))
+    with pytest.raises(UnsupportedPlanError, match="tile"):
+        check_replayable(plan_of(strip_cycle(3), NB[:2]))
