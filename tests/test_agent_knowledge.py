@@ -168,3 +168,16 @@ def test_news_wakes_the_waiters() -> None:
     peers.changed.clear()
     peers.on_death(DeathNotice(1, 1, 2, "heartbeat", 1.0))
     assert not peers.changed.is_set(), "the same life's death again is no news"
+
+
+def test_a_start_changed_within_one_life_is_counted_and_ignored() -> None:
+    from bus.messages import RobotStatus
+
+    drops = DropCounter()
+    peers = PeerTable(robot=0, k=3, drops=drops)
+    peers.on_status("mstc/t/status/1", RobotStatus(1, 1, (0, 0), "nb", "", "x"))
+    peers.on_status("mstc/t/status/1", RobotStatus(1, 1, (4, 4), "nb", "", "y"))
+    assert drops.total("status", "invalid") == 1
+    assert peers.statuses[1].start == (0, 0)
+    peers.on_status("mstc/t/status/1", RobotStatus(1, 2, (4, 4), "nb", "", "z"))
+    assert peers.statuses[1].start == (4, 4), "a new life may start elsewhere"
