@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import pytest
 from fleet_helpers import all_heard, mission_bus, mstc, start_simhw, stop_processes, write_room
+from takeover_oracle import fit_failures, ordered_walks, run_plan
 from waiting import wait_until
 
 from agent.offline.plan import compute_plan, plan_digest
@@ -287,6 +288,11 @@ async def test_fleet_survives_sigkills_as_the_takeover_semantics_say(
         in_flight = {(taker, dead) for taker, dead in walked
                      if taker in victims and len(fleet.walks[taker]) - 1 == moves[taker] + 1}
         assert walked - in_flight <= {(t.taker, t.dead) for t in semantics.takeovers}
+        # The same against the independent oracle (not the agents' own state machine).
+        independent = run_plan(fleet.plan, fit_failures(fleet.plan, moves))
+        assert independent.complete
+        assert_walks_follow(fleet, ordered_walks(fleet.plan, independent), dead=set(victims))
+        assert walked - in_flight <= {(taker, dead) for taker, dead, _ in independent.takeovers}
     finally:
         fleet.stop_all()
 

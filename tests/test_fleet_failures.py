@@ -39,6 +39,7 @@ from fleet_helpers import (
     write_room,
 )
 from ormstc_oracles import must_cover
+from takeover_oracle import fit_failures, ordered_walks, run_plan
 from test_agent_fleet import lockstep_failures
 from test_fleet_unit import reachable_oracle
 from waiting import through_router
@@ -146,6 +147,15 @@ def check_offline(heard: Heard, case: OfflineCase, grid: OccupancyGrid,
     in_flight = {(taker, dead) for taker, dead in walked
                  if taker in victims and len(heard.walks[taker]) - 1 == moves[taker] + 1}
     assert walked - in_flight <= {(t.taker, t.dead) for t in semantics.takeovers}
+    # The same against the independent oracle (not the agents' own state machine).
+    independent = run_plan(case.plan, fit_failures(case.plan, moves))
+    assert independent.complete
+    for robot, want in enumerate(ordered_walks(case.plan, independent)):
+        got = heard.walks[case.plan.robots[robot].robot]
+        if case.plan.robots[robot].robot in victims and len(got) == len(want) + 1:
+            got = got[:-1]
+        assert got == want, f"robot {robot}: ground truth walk differs from the oracle"
+    assert walked - in_flight <= {(taker, dead) for taker, dead, _ in independent.takeovers}
     print(f"{case.algo}: killed {moves} (reported moves), plan {case.steps}, "
           f"moves {[len(heard.walks[r]) - 1 for r in range(K)]}, walked takeovers {walked}")
     had_work = {v for v in victims if moves[v] < case.steps[v]}

@@ -1,0 +1,183 @@
+"""What a robot learns and when it acts on it, without processes: its own stall is never a
+peer's death, a death notice after planning reaches the state machine, and the runner pulls
+the others' knowledge before it decides a takeover (three mutants of issue 15 survived every
+fast test before these)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any, cast
+
+from test_takeover_oracle import plan_of, strip_cycle
+
+from agent.offline.peers import PeerTable
+from agent.offline.runner import OfflineRunner
+from bus.drops import DropCounter
+from bus.liveness import LivelinessService
+from bus.messages import DeathNotice, Heartbeat, RobotEvent
+from planner.offline.machine import OfflineRobot, WaitFor
+
+
+class FakeBus:
+    """Records what is published; always connected to a router."""
+
+    def __init__(self) -> None:
+        self.mission = "t"
+        self.published: list[tuple[str, Any]] = []
+        info = SimpleNamespace(routers_zid=lambda: iter([b"router"]), peers_zid=lambda: iter([]))
+        self.session = SimpleNamespace(info=info)
+
+    def publish(self, key: str, msg: Any) -> None:
+        self.published.append((key, msg))
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_a_robots_own_stall_is_never_taken_as_a_peers_death() -> None:
+    bus, clock, heard = FakeBus(), Clock(), []
+    service = LivelinessService(cast(Any, bus), 0, 1, timeout=1.0, clock=clock,
+                                on_death=heard.append)
+    service.tick()
+    service._on_heartbeat("mstc/t/hb/1", Heartbeat(1, 1, 0, None, "covering", 0.0))
+    clock.now = 30.0  # this process was paused for half a minute: robot 1 was not silent
+    assert service.tick() == [] and heard == []
+    # The positive witness: with its beats really missing, robot 1 is declared dead.
+    for now in (30.4, 30.8):  # ticks closer than half the timeout: no stall of our own
+        clock.now = now
+        assert service.tick() == []
+    clock.now = 31.2
+    assert [n.robot for n in service.tick()] == [1] and [n.robot for n in heard] == [1]
+
+
+NB = [(0, [1, 2, 3]), (4, [5, 6, 7]), (8, [9, 10, 11])]
+
+
+def test_a_death_notice_after_planning_reaches_the_state_machine() -> None:
+    plan = plan_of(strip_cycle(3), NB)
+    peers = PeerTable(robot=0, k=3, drops=DropCounter())
+    machine = OfflineRobot(plan, 0)
+    peers.attach(machine)
+    for _ in range(3):
+        machine.next_action()
+        machine.on_moved()
+    assert machine.next_action() == WaitFor(1)
+    bus = FakeBus()
+    service = LivelinessService(cast(Any, bus), 0, 1, on_death=peers.on_death)
+    service._on_notice("mstc/t/death/1", DeathNotice(1, 1, 2, "heartbeat", 0.0))
+    assert machine.dead == {1}
+    assert machine.about_to_take_over
+    assert peers.changed.is_set(), "the runner's wait is woken"
+
+
+class FakeHardware:
+    def __init__(self) -> None:
+        self.state = SimpleNamespace(sim_time=0.0)
+        self.steps: list[tuple[int, int]] = []
+
+    async def step_to(self, sub: tuple[int, int]) -> None:
+        self.steps.append(sub)
+
+
+async def test_the_runner_learns_the_dead_robots_coverage_before_it_takes_over() -> None:
+    # Robot 1 (region 4..11) went CCW to 11 first and died there: only 4 and 5 are left.
+    # Robot 0 never heard of 7..11; the others' state (the refresh) has them.
+    cycle = strip_cycle(3)
+    plan = plan_of(cycle, [(0, [1, 2, 3]), (6, [7, 8, 9, 10, 11, 10, 9, 8, 7, 6, 5, 4])])
+    peers = PeerTable(robot=0, k=2, drops=DropCounter())
+    machine = OfflineRobot(plan, 0)
+    peers.attach(machine)
+    peers.on_death(DeathNotice(1, 1, 0, "token", 0.0))
+    refreshes = []
+
+    async def refresh() -> None:
+        refreshes.append(machine.position)
+        for index in range(7, 12):
+            peers.covered_cell("mstc/t/state/1", cycle.at(index))
+
+    bus, body = FakeBus(), FakeHardware()
+    runner = OfflineRunner(cast(Any, bus), cast(Any, body), peers, machine, 1, refresh=refresh,
+                           refresh_period=60.0)
+    await runner.run()
+    events = [m for _, m in bus.published if isinstance(m, RobotEvent)]
+    started = [e.detail for e in events if e.kind == "takeover_started"]
+    assert started == ["walking to cycle index 5"], started
+    assert refreshes and refreshes[0] == 3, "refreshed once its own walk was done"
+    assert body.steps == [cycle.at(i) for i in (1, 2, 3, 4, 5)]
+
+
+def test_a_robots_own_death_notice_fences_it_and_is_no_peers_death() -> None:
+    heard: list[DeathNotice] = []
+    service = LivelinessService(cast(Any, FakeBus()), 0, 2, on_death=heard.append)
+    service._on_notice("mstc/t/death/0", DeathNotice(0, 1, 1, "heartbeat", 0.0))
+    assert not service.fenced.is_set(), "an older life's death does not fence this one"
+    service._on_notice("mstc/t/death/0", DeathNotice(0, 2, 1, "heartbeat", 0.0))
+    assert service.fenced.is_set() and heard == []
+
+
+def test_a_vanished_token_of_an_unknown_fenced_life_stays_dead() -> None:
+    from bus.liveness import FailureDetector
+
+    detector = FailureDetector(timeout=1.0)
+    detector.on_death_notice(DeathNotice(1, 3, 0, "token", 0.0))
+    detector.on_token_deleted(1, 3, now=1.0)
+    assert detector.alive() == {}, "a fenced life is not brought back by its token's end"
+    detector.on_token_deleted(2, 1, now=1.0)
+    assert detector.alive() == {2: 1}, "an unknown life whose token vanished is watched"
+
+
+def test_the_mission_verdict_is_final_and_complete_covers_everything() -> None:
+    from bus.messages import MissionStatus
+
+    plan = plan_of(strip_cycle(3), NB)
+    peers = PeerTable(robot=0, k=3, drops=DropCounter())
+    peers.on_mission("mstc/t/mission", MissionStatus("running", "", {}))
+    assert not peers.verdict.is_set()
+    machine = OfflineRobot(plan, 0)
+    peers.attach(machine)
+    peers.on_mission("mstc/t/mission", MissionStatus("complete", "", {}))
+    assert peers.verdict.is_set() and machine.all_covered
+    peers.on_mission("mstc/t/mission", MissionStatus("running", "stale", {}))
+    assert peers.mission is not None and peers.mission.state == "complete"
+
+
+def test_robots_known_dead_need_no_plan_digest() -> None:
+    from bus.messages import RobotStatus
+
+    peers = PeerTable(robot=0, k=3, drops=DropCounter())
+    peers.on_status("mstc/t/status/0", RobotStatus(0, 1, (0, 0), "nb", "abc", "x"))
+    assert peers.missing_digests() == [1, 2]
+    peers.on_death(DeathNotice(2, 1, 0, "token", 0.0))
+    assert peers.missing_digests() == [1]
+
+
+def test_news_wakes_the_waiters() -> None:
+    from bus.messages import RobotStatus
+
+    peers = PeerTable(robot=0, k=3, drops=DropCounter())
+    peers.on_status("mstc/t/status/1", RobotStatus(1, 1, (0, 0), "nb", "", "x"))
+    assert peers.changed.is_set(), "a new status is news"
+    peers.changed.clear()
+    peers.on_death(DeathNotice(1, 1, 0, "token", 0.0))
+    assert peers.changed.is_set(), "a death is news"
+    peers.changed.clear()
+    peers.on_death(DeathNotice(1, 1, 2, "heartbeat", 1.0))
+    assert not peers.changed.is_set(), "the same life's death again is no news"
+
+
+def test_a_start_changed_within_one_life_is_counted_and_ignored() -> None:
+    from bus.messages import RobotStatus
+
+    drops = DropCounter()
+    peers = PeerTable(robot=0, k=3, drops=drops)
+    peers.on_status("mstc/t/status/1", RobotStatus(1, 1, (0, 0), "nb", "", "x"))
+    peers.on_status("mstc/t/status/1", RobotStatus(1, 1, (4, 4), "nb", "", "y"))
+    assert drops.total("status", "invalid") == 1
+    assert peers.statuses[1].start == (0, 0)
+    peers.on_status("mstc/t/status/1", RobotStatus(1, 2, (4, 4), "nb", "", "z"))
+    assert peers.statuses[1].start == (4, 4), "a new life may start elsewhere"
