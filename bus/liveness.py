@@ -116,6 +116,8 @@ class FailureDetector:
         if detector != self.detector and detector not in self._peers \
                 and detector not in self._dead:
             return f"detector {detector} is not a known participant"
+        if notice.robot == self.detector:
+            return None  # about this robot: its service checks against its own life
         peer = self._peers.get(notice.robot)
         newest = max(peer.incarnation if peer is not None else -1,
                      self._dead[notice.robot].incarnation if notice.robot in self._dead else -1)

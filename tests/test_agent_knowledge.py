@@ -26,6 +26,7 @@ class FakeBus:
         self.published: list[tuple[str, Any]] = []
         info = SimpleNamespace(routers_zid=lambda: iter([b"router"]), peers_zid=lambda: iter([]))
         self.session = SimpleNamespace(info=info)
+        self.drops = DropCounter()
 
     def publish(self, key: str, msg: Any) -> None:
         self.published.append((key, msg))
@@ -69,6 +70,8 @@ def test_a_death_notice_after_planning_reaches_the_state_machine() -> None:
     assert machine.next_action() == WaitFor(1)
     bus = FakeBus()
     service = LivelinessService(cast(Any, bus), 0, 1, on_death=peers.on_death)
+    for robot in (1, 2):  # a notice counts only from a known participant (docs/security.md)
+        service._on_heartbeat(f"mstc/t/hb/{robot}", Heartbeat(robot, 1, 0, None, "covering", 0.0))
     service._on_notice("mstc/t/death/1", DeathNotice(1, 1, 2, "heartbeat", 0.0))
     assert machine.dead == {1}
     assert machine.about_to_take_over
@@ -114,6 +117,7 @@ async def test_the_runner_learns_the_dead_robots_coverage_before_it_takes_over()
 def test_a_robots_own_death_notice_fences_it_and_is_no_peers_death() -> None:
     heard: list[DeathNotice] = []
     service = LivelinessService(cast(Any, FakeBus()), 0, 2, on_death=heard.append)
+    service._on_heartbeat("mstc/t/hb/1", Heartbeat(1, 1, 0, None, "covering", 0.0))
     service._on_notice("mstc/t/death/0", DeathNotice(0, 1, 1, "heartbeat", 0.0))
     assert not service.fenced.is_set(), "an older life's death does not fence this one"
     service._on_notice("mstc/t/death/0", DeathNotice(0, 2, 1, "heartbeat", 0.0))
