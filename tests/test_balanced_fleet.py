@@ -33,7 +33,10 @@ def test_a_balanced_fleet_covers_everything(free_port: int, tmp_path: Path) -> N
 
 def test_a_balanced_fleet_finishes_a_killed_robots_region(free_port: int,
                                                           tmp_path: Path) -> None:
-    result = run_balanced(free_port, tmp_path / "run", "--kill", "2@progress=30")
+    # at full speed the kill can land after robot 2 finished its region; 100 x keeps it
+    # mid-mission, so its region is left half done for the takeover
+    result = run_balanced(free_port, tmp_path / "run", "--kill", "2@progress=30",
+                          "--time-scale", "100")
     summary = check_complete(result, tmp_path / "run")
     assert [lost["robot"] for lost in summary["robots_lost"]] == [2]
     assert "takes over robot 2" in result.stdout
