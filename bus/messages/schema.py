@@ -39,8 +39,9 @@ from bus.messages.world import BumpEvent, CoverEvent, GroundTruthPose, RobotTrut
 # generation; payloads of older generations stay readable for every kind that has not changed
 # since (docs/protocol.md, "Versioning rule"), so one kind's change does not make old
 # recordings of the others unreadable.
-# 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims; 3: TreeReport.gone/.dead
-SCHEMA_VERSION = 3
+# 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims; 3: TreeReport.gone/.dead;
+# 4: RobotStatus.roster
+SCHEMA_VERSION = 4
 
 
 class QosClass(enum.Enum):
@@ -100,7 +101,7 @@ HW_ADMIN = family("hw/admin")  # queryable (simhw): AdminCommand -> AdminReply
 KINDS: tuple[Kind, ...] = (
     # a robot's life (bus.messages.lifecycle)
     Kind(Heartbeat, (family("hb/{robot}"),), C.HEARTBEAT),
-    Kind(RobotStatus, (family("status/{robot}"),), C.CRITICAL),
+    Kind(RobotStatus, (family("status/{robot}"),), C.CRITICAL, since=4),
     Kind(RobotEvent, (family("event/{robot}"),), C.CRITICAL),
     Kind(DeathNotice, (family("death/{robot}"),), C.CRITICAL),  # <robot>: the dead one
     Kind(MissionStatus, (family("mission"), family("state/mission")), C.CRITICAL),
