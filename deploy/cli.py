@@ -31,6 +31,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "monitor": ("deploy.cmd_monitor", "watch a mission live (terminal view or --plain)"),
     "replay": ("deploy.cmd_replay", "replay a recorded mission through the live view"),
     "report": ("deploy.cmd_report", "summarise and verify a recorded mission"),
+    "chaos": ("deploy.cmd_chaos", "a seeded robustness campaign: fleets under faults, judged"),
     "tree-cover": ("deploy.cmd_tree_cover", "connected coverage of a tree (NCOCTA / COCTA)"),
     "tree-fleet": ("deploy.cmd_tree_fleet", "NCOCTA / COCTA as a fleet: router, radio, K agents"),
     "radio": ("simhw.radio", "run the radio relay of tree coverage (same or adjacent node)"),

@@ -144,8 +144,6 @@ class OrmstcAgent(BodyAgent):
         status = self.statuses.get(robot)
         if status is not None and status.state == "done":
             return  # it left after the mission was over for it: nothing to take over
-        if self.roster is not None and robot not in self.roster:
-            return  # it took no part: it holds nothing
         self._wake(PeerDied(robot))
 
     def state_message(self) -> AgentState:
