@@ -9,7 +9,7 @@ import statistics
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from deploy.chaos.schedule import Campaign, make_trial
+from deploy.chaos.schedule import Campaign, Fault, Trial, make_trial
 from deploy.chaos.trial import Outcome, run_trial
 
 VERDICTS = ("ok", "lost", "gap", "double")
@@ -66,3 +66,16 @@ def table(outcomes: list[Outcome]) -> str:
     return "\n".join("  ".join(cell.ljust(w) if i == 0 else cell.rjust(w)
                                for i, (cell, w) in enumerate(zip(row, widths, strict=True)))
                      for row in rows)
+
+
+def load_outcomes(path: Path) -> list[Outcome]:
+    """The outcomes of a trials.jsonl (to tabulate a campaign that was cut short)."""
+    outcomes = []
+    for line in path.read_text().splitlines():
+        if not line.strip():
+            continue
+        data = json.loads(line)
+        trial = dict(data.pop("trial"))
+        trial["faults"] = tuple(Fault(**f) for f in trial["faults"])
+        outcomes.append(Outcome(trial=Trial(**trial), **data))
+    return outcomes

@@ -45,7 +45,8 @@ class RouterProcess:
         seen = self._ready_marks()
         with self.log.open("ab") as out:
             self.proc = subprocess.Popen(
-                mstc_argv("router", "--listen", self.endpoint), stdin=subprocess.DEVNULL,
+                mstc_argv("router", "--listen", self.endpoint, "--exit-with-parent"),
+                stdin=subprocess.DEVNULL,
                 stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
                 env=dict(os.environ, PYTHONUNBUFFERED="1"))
         async with asyncio.timeout(timeout):
@@ -124,13 +125,17 @@ class Injector:
         pid = self.agent_pid(fault.robot)
         if pid is None:
             # Not spawned yet: a fault this early hits the robot as it boots.
-            for _ in range(40):
-                await asyncio.sleep(0.05)
+            for _ in range(1500):  # mstc up spawns the agents once simhw is ready
+                await asyncio.sleep(0.02)
                 if (pid := self.agent_pid(fault.robot)) is not None:
                     break
         if pid is None:
             self.done.append(f"{fault.describe()}: no such process")
             return
+        if fault.mark and not await self._marked(fault.robot, fault.mark):
+            self.done.append(f"{fault.describe()}: the mark never came")
+            return
+        await asyncio.sleep(fault.at if fault.mark else 0.0)
         if fault.kind == "kill":
             _signal(pid, signal.SIGKILL)
         elif fault.kind == "hang":
@@ -151,6 +156,18 @@ class Injector:
             self.done.append(f"{fault.describe()}: ports {ports}")
             return
         self.done.append(fault.describe())
+
+    async def _marked(self, robot: int, mark: str, timeout: float = 60.0) -> bool:
+        """Wait until robot ``robot``'s log shows ``mark``; False if it never does."""
+        log = self.run_dir / "logs" / f"agent-{robot}.log"
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(timeout):
+                while True:
+                    with contextlib.suppress(OSError):
+                        if mark in log.read_text(errors="replace"):
+                            return True
+                    await asyncio.sleep(0.02)
+        return False
 
     async def _router(self, fault: Fault) -> None:
         if fault.kind == "router-freeze":

@@ -23,17 +23,21 @@ LOSS_SPEC = "*.drop=0.03;*.lose=0.03;*.dup=0.05;*.delay=0.05;*.reorder=0.05;wind
 @dataclass(frozen=True)
 class Fault:
     """One process fault: ``kind`` in PROCESS_FAULTS, ``robot`` its target (None: the
-    router), ``seconds`` how long a hang, freeze, partition or router outage lasts."""
+    router), ``seconds`` how long a hang, freeze, partition or router outage lasts. With a
+    ``mark``, ``at`` counts from the moment the target's log first shows that text (a phase
+    of its life: "gathering", "participants", "driving", "completed")."""
 
     kind: str
     at: float
     robot: int | None = None
     seconds: float = 0.0
+    mark: str = ""
 
     def describe(self) -> str:
         target = "router" if self.robot is None else f"robot {self.robot}"
         span = f" for {self.seconds:.1f} s" if self.seconds else ""
-        return f"{self.kind} {target} at {self.at:.1f} s{span}"
+        after = f" after {self.mark!r}" if self.mark else ""
+        return f"{self.kind} {target} at {self.at:.1f} s{after}{span}"
 
 
 @dataclass(frozen=True)

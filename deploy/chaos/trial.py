@@ -91,7 +91,8 @@ async def run_trial(trial: Trial, workdir: Path) -> Outcome:
         try:
             async with asyncio.timeout(TRIAL_TIMEOUT_S), asyncio.TaskGroup() as group:
                 for fault in trial.faults:
-                    group.create_task(_at(t0 + fault.at, injector, fault))
+                    group.create_task(_at(t0 + (0.0 if fault.mark else fault.at), injector,
+                                          fault))
                 code = await asyncio.to_thread(up.wait)
         except TimeoutError:
             _stop(up)
