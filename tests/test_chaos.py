@@ -138,3 +138,19 @@ async def test_a_ci_sized_campaign_loses_no_mission(tmp_path: Path) -> None:
     assert len(lines) == 12 and (tmp_path / "trials.jsonl").read_text().count("\n") == 12
     lost = [(o.trial.describe(), o.detail) for o in outcomes if o.verdict in ("lost", "double")]
     assert not lost, lost
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+async def test_a_robot_heard_after_the_agreement_takes_no_part(tmp_path: Path) -> None:
+    # Robot 2 is stopped as it boots, past the others' boot timeout: they agree without it
+    # and declare its first life dead; when it wakes it stands down (or fences itself).
+    outcome = await _judged(_trial("bt", 3, Fault("hang", 0.0, 2, 10.5)), tmp_path)
+    logs = tmp_path / "trial" / "run" / "logs"
+    assert "robots [2] never announced a start" in (logs / "agent-0.log").read_text()
+    late = (logs / "agent-2.log").read_text()
+    # it may not even have reached the bus before the mission ended
+    assert "driving" not in late, late
+    if "body at" in late:
+        assert "stands down" in late or "declared dead" in late, late
+    assert outcome.complete

@@ -95,9 +95,11 @@ class BodyAgent(AgentLife):
                                                self._peer_statuses(), self._dead_robots(),
                                                boot_over)
                     if isinstance(outcome, agreement.StandDown):
-                        raise StoodDownError(
-                            f"robot {self.robot} stands down: robot {outcome.decided_by} and "
-                            f"the others agreed on robots {sorted(outcome.roster)} without it")
+                        why = (f"robot {self.robot} stands down: robot {outcome.decided_by} "
+                               f"and the others agreed on robots {sorted(outcome.roster)} "
+                               "without it")
+                        self._say(why)
+                        raise StoodDownError(why)
                     if isinstance(outcome, agreement.Agreed):
                         self._agreed(outcome)
                         return outcome.roster
