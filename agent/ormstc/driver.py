@@ -69,6 +69,7 @@ from planner.ormstc.types import (
     Request,
     Sense,
     SenseResult,
+    StartMsg,
     SubCell,
     Tick,
 )
@@ -313,6 +314,12 @@ class OrmstcAgent(BodyAgent):
     async def _mission(self) -> None:
         start = await self._gather_starts()
         self.machine = OrmstcMachine(self.options.machine(self.config, start))
+        # Every participant's start is in the agreed roster: a StartMsg lost on the wire must
+        # not leave the machine waiting for it (nor for a silence to trigger a restatement).
+        assert self.roster is not None
+        for robot, sub in sorted(self.roster.items()):
+            if robot != self.robot:
+                self.pending.append(PeerMessage(robot, StartMsg(robot, sub)))
         self._status("covering")
         self._event("started")
         self._say("driving")
