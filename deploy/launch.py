@@ -105,7 +105,7 @@ class Launcher:
         world = ["--world", s.world] + ([] if s.cell_size is None else
                                         ["--cell-size", str(s.cell_size)])
         self.simhw = self._spawn("simhw", "simhw", mstc_argv(
-            "simhw", *world, "--robots", starts, "--seed", str(s.seed),
+            "simhw", *world, "--starts", starts, "--seed", str(s.seed),
             "--time-scale", str(s.time_scale), *self._connection(), *self.settings.simhw_args))
         await self._wait_ready(self.simhw, SIMHW_READY, 30.0)
         if self.stop.is_set():

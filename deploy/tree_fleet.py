@@ -24,9 +24,8 @@ from pathlib import Path
 from bus import keys
 from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
-from bus.messages import MissionStatus
+from bus.messages import MissionStatus, RadioStats, TreeReport
 from bus.router import READY_MARK as ROUTER_READY
-from bus.tree_messages import RadioStats, TreeReport
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
 from deploy.settings import KillOrder
 from deploy.supervisor import KillSchedule, Supervisor

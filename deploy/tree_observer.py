@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from dataclasses import dataclass, field
 
-from bus.tree_messages import TreeReport
+from bus.messages import TreeReport
 from planner.treecover.types import Tree
 
 

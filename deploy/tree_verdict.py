@@ -5,7 +5,7 @@ of one."""
 
 from __future__ import annotations
 
-from bus.tree_messages import RadioStats
+from bus.messages import RadioStats
 from deploy.tree_observer import ObservedRun
 from planner.treecover.failures import run_with_failures
 from planner.treecover.sim import run_coverage

@@ -40,8 +40,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
                         help="map pixels per sub-cell side (default 1)")
     where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("--robots", metavar="'r,c;r,c;...'",
-                       help="start sub-cell of each robot, in robot-id order")
+    where.add_argument("--starts", "--robots", dest="starts", metavar="'r,c;r,c;...'",
+                       help="start sub-cell of each robot, in robot-id order (--robots is the "
+                            "old spelling, kept as an alias: elsewhere --robots is a count)")
     where.add_argument("--random-robots", type=positive_int, metavar="K",
                        help="place K robots at random in the largest free component")
     parser.add_argument("--seed", type=int, default=0,
@@ -71,8 +72,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def build_world(args: argparse.Namespace) -> World:
     """The World the arguments describe (user mistakes raise a PlannerError subclass)."""
     grid: OccupancyGrid = resolve_world(args.world, args.cell_size)
-    if args.robots is not None:
-        starts = parse_starts(args.robots)
+    if args.starts is not None:
+        starts = parse_starts(args.starts)
     else:
         starts = random_starts(grid, args.random_robots, args.seed)
     validate_starts(grid, coarsen(grid), starts)

@@ -22,7 +22,7 @@ from bus.argtypes import positive_int
 from bus.bridge import BoundedFifo, Bus
 from bus.config import add_connection_arguments, settings_from_args
 from bus.errors import BusError
-from bus.tree_messages import RadioStats, TreeReport
+from bus.messages import RadioStats, TreeReport
 from planner.treecover.trees import tree_from_spec
 from planner.treecover.types import Tree
 from simhw.radio_model import RadioModel

@@ -1,4 +1,5 @@
-"""Shared fixtures: a free loopback port, and a real ``mstc router`` subprocess."""
+"""Shared fixtures (a free loopback port, a real ``mstc router`` subprocess) and the
+hypothesis profiles: ``default`` for CI, ``quick`` for the edit-test loop."""
 
 from __future__ import annotations
 
@@ -6,6 +7,25 @@ import socket
 from collections.abc import Iterator
 
 import pytest
+from hypothesis import settings
+
+# The quick loop (README, Development) runs every property with few examples: enough to
+# catch a broken invariant while editing; CI keeps each test's own max_examples.
+QUICK_EXAMPLES = 10
+settings.register_profile("quick", max_examples=QUICK_EXAMPLES)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    # A test's own @settings(max_examples=N) beats any profile, so the quick profile
+    # lowers each test's settings itself; hypothesis reads them when the test runs.
+    if settings.get_current_profile_name() != "quick":
+        return
+    for item in items:
+        test = getattr(getattr(item, "obj", None), "__func__", getattr(item, "obj", None))
+        own = getattr(test, "_hypothesis_internal_use_settings", None)
+        if own is not None and own.max_examples > QUICK_EXAMPLES:
+            test._hypothesis_internal_use_settings = settings(  # type: ignore[union-attr]
+                own, max_examples=QUICK_EXAMPLES)
 
 
 def pick_free_port() -> int:

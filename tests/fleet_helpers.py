@@ -15,11 +15,12 @@ from pathlib import Path
 from typing import IO, Literal
 
 import numpy as np
+from waiting import through_router, wait_until
 
 from bus import keys
 from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
-from bus.messages import CoverEvent, DeathNotice, Progress, RobotEvent
+from bus.messages import CoverEvent, DeathNotice, Progress, RobotEvent, WorldState
 from bus.router import stop_process
 from planner.types import SubCell
 
@@ -44,7 +45,7 @@ def start_simhw(world: Path, starts: Sequence[SubCell], router: str, mission: st
                 time_scale: float, *extra: str, stdout: int | IO[str] | None = subprocess.PIPE,
                 stderr: int | IO[str] | None = subprocess.PIPE) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        mstc("simhw", "--world", str(world), "--robots", robots_arg(starts),
+        mstc("simhw", "--world", str(world), "--starts", robots_arg(starts),
              "--time-scale", str(time_scale), *extra, "--connect", router,
              "--mission", mission),
         stdin=subprocess.DEVNULL, stdout=stdout, stderr=stderr, text=True)
@@ -56,11 +57,31 @@ def stop_processes(procs: Iterable[subprocess.Popen[str]]) -> None:
         stop_process(proc, timeout=10.0)
 
 
+# The router of each open mission_bus, by mission: listen() probes through it.
+_routers: dict[str, str] = {}
+
+
 @asynccontextmanager
 async def mission_bus(router: str, mission: str) -> AsyncIterator[Bus]:
     """The test's own session on ``mission``, through ``router``."""
     async with Bus.connect(ConnectionSettings(connect=(router,), mission=mission)) as bus:
-        yield bus
+        _routers[mission] = router
+        try:
+            yield bus
+        finally:
+            del _routers[mission]
+
+
+async def all_heard(bus: Bus, walks: dict[int, list[SubCell]], timeout: float = 10.0) -> None:
+    """Wait until ``walks`` (filled from the mission's CoverEvents) holds every sub-cell
+    entry simhw logged, then until the router has passed on whatever else came before."""
+    async def every_cover() -> bool:
+        replies = await bus.query(keys.world(bus.mission), None, WorldState, timeout=5.0)
+        return bool(replies) and all(len(walks.get(t.robot, ())) >= t.covered
+                                     for t in replies[0].msg.robots)
+
+    await wait_until(every_cover, timeout, "simhw's last cover events")
+    await through_router(bus, _routers[bus.mission], timeout)
 
 
 @dataclass
@@ -120,8 +141,7 @@ async def listen(bus: Bus, heard: Heard) -> None:
     bus.subscribe(keys.all_deaths(m), DeathNotice, lambda _k, d: heard.deaths.append(d),
                   BoundedFifo(65536))
     bus.subscribe(keys.all_ormstc(m), WIRE_TYPES, on_ormstc, BoundedFifo(65536))
-    # Let the subscriptions reach the router before anything is published.
-    await asyncio.sleep(0.3)
+    await through_router(bus, _routers[bus.mission])  # before anything is published
 
 
 @dataclass

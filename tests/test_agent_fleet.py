@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 import pytest
-from fleet_helpers import mission_bus, mstc, start_simhw, stop_processes, write_room
+from fleet_helpers import all_heard, mission_bus, mstc, start_simhw, stop_processes, write_room
+from waiting import wait_until
 
 from agent.offline.plan import compute_plan, plan_digest
 from bus import keys
@@ -206,7 +207,7 @@ async def test_fleet_follows_the_plan_and_covers_everything(
         fleet.start(0, "--tree", tree)
         codes = [await fleet.wait_exit(robot) for robot in range(K)]
         assert codes == [0] * K, [fleet.stderr_of(r) for r in range(K)]
-        await asyncio.sleep(0.2)  # the last ground-truth messages
+        await all_heard(fleet_bus, fleet.walks)
         plan = fleet.plan
         assert_walks_follow(fleet, [rp.path for rp in plan.robots], dead=set())
         moves = [len(fleet.walks[r]) - 1 for r in range(K)]
@@ -239,7 +240,8 @@ def lockstep_failures(plan: Plan, moves: dict[int, int]) -> dict[int, int]:
 
 
 @pytest.mark.parametrize(("seed", "algo", "count"), [
-    (1, "nb", K - 1), pytest.param(2, "bt", 2, marks=pytest.mark.slow),
+    pytest.param(1, "nb", K - 1, marks=pytest.mark.slow),
+    pytest.param(2, "bt", 2, marks=pytest.mark.slow),
     pytest.param(3, "opt", 1, marks=pytest.mark.slow)])
 async def test_fleet_survives_sigkills_as_the_takeover_semantics_say(
         fleet_bus: Bus, router: str, world: Path, seed: int, algo: str, count: int) -> None:
@@ -256,7 +258,7 @@ async def test_fleet_survives_sigkills_as_the_takeover_semantics_say(
         survivors = [r for r in range(K) if r not in victims]
         codes = [await fleet.wait_exit(robot) for robot in survivors]
         assert codes == [0] * len(survivors), [fleet.stderr_of(r) for r in survivors]
-        await asyncio.sleep(0.3)
+        await all_heard(fleet_bus, fleet.walks)
         moves = {robot: fleet.reported[robot] for robot in victims}
         walked = {(e.robot, e.subject) for e in fleet.events
                   if e.kind == "takeover_started" and e.detail.startswith("walking")}
@@ -307,25 +309,35 @@ def garbage(bus: Bus) -> None:
         bus.publish(key, msg)
 
 
+@pytest.mark.slow
 async def test_garbage_is_counted_and_sigterm_leaves_cleanly(
         fleet_bus: Bus, router: str, world: Path) -> None:
     fleet = await make_fleet(fleet_bus, router, world, "bt")
     try:
         await fleet.start_driving(20)
         garbage(fleet_bus)
-        await asyncio.sleep(0.5)
-        replies: list[Received[Any]] = await fleet_bus.query(
-            keys.state(fleet_bus.mission, 0), None,
-            (AgentState, RobotStatus, DeathNotice, MissionStatus), timeout=2.0)
-        states = [rx.msg for rx in replies if isinstance(rx.msg, AgentState)]
-        assert states, "agent 0 did not answer its state query"
-        drops = states[0].drops
-        for kind in ("progress", "status", "hb", "death"):
-            assert drops.get(f"{kind}.decode", 0) >= 2, (kind, drops)
-        # The mission key keeps only the newest message: one of the two may be superseded.
-        assert drops.get("mission.decode", 0) >= 1, drops
-        assert drops.get("progress.invalid", 0) >= 3, drops
-        assert drops.get("status.invalid", 0) >= 1, drops
+
+        # At least what garbage() sent; the mission key keeps only the newest message, so
+        # one of its two may be superseded.
+        least = {**{f"{kind}.decode": 2 for kind in ("progress", "status", "hb", "death")},
+                 "mission.decode": 1, "progress.invalid": 3, "status.invalid": 1}
+
+        async def drops_of_agent_0() -> dict[str, int]:
+            replies: list[Received[Any]] = await fleet_bus.query(
+                keys.state(fleet_bus.mission, 0), None,
+                (AgentState, RobotStatus, DeathNotice, MissionStatus), timeout=2.0)
+            states = [rx.msg for rx in replies if isinstance(rx.msg, AgentState)]
+            assert states, "agent 0 did not answer its state query"
+            return dict(states[0].drops)
+
+        async def all_counted() -> bool:
+            drops = await drops_of_agent_0()
+            return all(drops.get(key, 0) >= n for key, n in least.items())
+
+        await wait_until(all_counted, 10.0, "agent 0 to count the garbage")
+        drops = await drops_of_agent_0()
+        for key, n in least.items():
+            assert drops.get(key, 0) >= n, (key, drops)
         # Robot 1 is asked to leave mid-mission: exit 0, "leaving" said, section taken over.
         fleet.agents[1].send_signal(signal.SIGTERM)
         assert await fleet.wait_exit(1, timeout=10) == 0

@@ -12,6 +12,7 @@ import time
 from collections.abc import AsyncIterator
 
 import pytest
+from waiting import through_router
 
 from bus.bridge import Bus
 from bus.config import ConnectionSettings
@@ -111,8 +112,10 @@ async def test_hung_robot_is_declared_dead_and_fenced_when_it_wakes(
         assert proc.stdout is not None
         line = await asyncio.wait_for(asyncio.to_thread(proc.stdout.readline), 10.0)
         assert line.strip() == "fenced"
-        # The woken robot's stale view did not make it accuse the watcher.
-        await asyncio.sleep(0.5)
+        # The woken robot's stale view did not make it accuse the watcher: it has ended its
+        # life, and what it sent before has come through the router.
+        assert await asyncio.to_thread(proc.wait, 10.0) == 0
+        await through_router(service.bus, router)
         assert not service.fenced.is_set()
         assert len(deaths) == 1 and service.detector.alive() == {}
     finally:

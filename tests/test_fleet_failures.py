@@ -30,6 +30,7 @@ import pytest
 from fleet_helpers import (
     Heard,
     LocalFleet,
+    all_heard,
     fail_when,
     listen,
     mission_bus,
@@ -40,6 +41,7 @@ from fleet_helpers import (
 from ormstc_oracles import must_cover
 from test_agent_fleet import lockstep_failures
 from test_fleet_unit import reachable_oracle
+from waiting import through_router
 
 from agent.offline.plan import compute_plan
 from bus import keys
@@ -183,7 +185,8 @@ async def world_state(bus: Bus) -> WorldState:
 
 
 # Seed 3: opt, k - 1 = 3 robots killed; 16: bt, 2 killed; 21: nb, 1 killed.
-@pytest.mark.parametrize("seed", [3, 16, pytest.param(21, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("seed", [pytest.param(3, marks=pytest.mark.slow), 16,
+                                  pytest.param(21, marks=pytest.mark.slow)])
 async def test_offline_fleet_survives_seeded_sigkills_as_the_semantics_say(
         bus: Bus, router: str, tmp_path: Path, seed: int) -> None:
     world = write_room(tmp_path, ROOM)
@@ -204,7 +207,7 @@ async def test_offline_fleet_survives_seeded_sigkills_as_the_semantics_say(
         await fleet.finish(set(range(K)) - victims, TIMEOUT)
         assert not due, f"robots {sorted(due)} never reached their kill point"
         assert all(fleet.agents[v].wait(5) == -signal.SIGKILL for v in victims)
-        await asyncio.sleep(0.3)  # the last ground-truth messages
+        await all_heard(bus, heard.walks)
         check_offline(heard, case, grid, victims)
         dead = {d.robot for d in heard.deaths if d.reason != "leaving"}
         assert victims <= dead, "a SIGKILLed robot was never declared dead"
@@ -213,7 +216,8 @@ async def test_offline_fleet_survives_seeded_sigkills_as_the_semantics_say(
 
 
 # Seeds 42: k - 1 = 2 of 3 robots killed; 41: 1 killed.
-@pytest.mark.parametrize("seed", [42, pytest.param(41, marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [42, 41])
 async def test_ormstc_fleet_survives_seeded_sigkills(bus: Bus, router: str, tmp_path: Path,
                                                      seed: int) -> None:
     world = write_room(tmp_path, SMALL_ROOM)
@@ -233,7 +237,7 @@ async def test_ormstc_fleet_survives_seeded_sigkills(bus: Bus, router: str, tmp_
         fleet.start("ormstc", 0, *AGENT_ARGS)
         await fleet.finish(set(range(k)) - victims, TIMEOUT)
         assert not due, f"robots {sorted(due)} never reached their kill point"
-        await asyncio.sleep(0.2)  # the last published tree edges
+        await through_router(bus, router)  # the last published tree edges
         state = await world_state(bus)
         bodies = [(t.pose[0], t.pose[1]) for t in state.robots if t.robot in victims]
         check_ormstc(world_visits(state), grid, starts, heard, victims, bodies)
@@ -281,6 +285,7 @@ def summary_of(run_dir: Path, grid: OccupancyGrid,
     return summary
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [51])
 async def test_up_ormstc_with_a_robot_killed_mid_mission(bus: Bus, router: str,
                                                          tmp_path: Path, seed: int) -> None:
@@ -324,6 +329,7 @@ def check_body_failure(heard: Heard, case: OfflineCase, grid: OccupancyGrid, vic
     check_offline(heard, case, grid, {victim})
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [10])  # nb; robot 2 plans 45 moves, the others 6-44
 async def test_up_kill_hw_at_a_percentage_fails_a_robot_mid_section(
         bus: Bus, router: str, tmp_path: Path, seed: int) -> None:
@@ -343,6 +349,7 @@ async def test_up_kill_hw_at_a_percentage_fails_a_robot_mid_section(
     check_body_failure(heard, case, grid, victim, tmp_path / "run", code, output)
 
 
+@pytest.mark.slow
 async def test_mstc_kill_hw_fails_a_running_robot_mid_section(bus: Bus, router: str,
                                                               tmp_path: Path) -> None:
     world = write_room(tmp_path, ROOM)

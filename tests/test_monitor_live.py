@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from waiting import wait_until
 
 from bus import keys
 from bus.announce import Announcer
@@ -278,13 +279,21 @@ async def test_recorded_runs_a_launcher_with_a_recorder_beside_it(router: str,
             await asyncio.sleep(1.5)  # the recorder's subscription reaches the router
             for seq in range(1, 6):
                 bus.publish(keys.heartbeat(mission, 0), Heartbeat(0, 1, seq, None, "x", 0.0))
-            await asyncio.sleep(0.5)
+            await wait_until(lambda: len(heartbeats_in(path)) >= 5, 10.0,
+                             "the recorder to write the 5 heartbeats")
         return 7
 
     assert await recorded(launcher(), settings, path) == 7
     recording = read_recording(path)
     assert recording.header.source == "up" and recording.header.mission == mission
     assert [r.msg.seq for r in recording.records if r.kind == "heartbeat"] == [1, 2, 3, 4, 5]
+
+
+def heartbeats_in(path: Path) -> list[int]:
+    """The heartbeats recorded so far (none before the header line is out)."""
+    if not path.exists() or "\n" not in path.read_text():
+        return []
+    return [r.msg.seq for r in read_recording(path).records if r.kind == "heartbeat"]
 
 
 async def test_recorded_does_not_wait_for_a_router_that_never_came(tmp_path: Path) -> None:

@@ -27,6 +27,7 @@ from fleet_helpers import mission_bus, mstc, start_simhw, stop_processes, write_
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from ormstc_oracles import must_cover
+from waiting import through_router
 
 from agent.ormstc.sensing import (
     HEADING_DELTA,
@@ -200,7 +201,7 @@ async def make_fleet(bus: Bus, router: str, room: Path,
 
     bus.subscribe(keys.all_ormstc(bus.mission), WIRE_TYPES, on_ormstc, BoundedFifo(65536))
     bus.subscribe(keys.all_events(bus.mission), RobotEvent, on_event, BoundedFifo(1024))
-    await asyncio.sleep(0.3)  # let the subscription reach the router first
+    await through_router(bus, router)  # before anything is published
     return fleet
 
 
@@ -241,10 +242,10 @@ def check_ownership(fleet: Fleet, dead: set[int]) -> None:
         assert len(robots - dead) <= 1, f"cell {cell} owned by live robots {robots - dead}"
 
 
-async def run_to_end(fleet: Fleet, robots: list[int]) -> None:
+async def run_to_end(bus: Bus, fleet: Fleet, robots: list[int]) -> None:
     codes = [await fleet.wait_exit(r) for r in robots]
     assert codes == [0] * len(robots), [fleet.stderr(r) for r in robots]
-    await asyncio.sleep(0.2)  # the last published tree edges
+    await through_router(bus, fleet.router)  # the last published tree edges
 
 
 @pytest.mark.integration
@@ -252,7 +253,7 @@ async def test_four_robots_cover_everything_once(bus: Bus, router: str, room: Pa
     fleet = await make_fleet(bus, router, room)
     try:
         fleet.start()
-        await run_to_end(fleet, list(range(len(STARTS))))
+        await run_to_end(bus, fleet, list(range(len(STARTS))))
         state = await world_state(bus)
         grid = load_room(room)
         visits = check_complete(state, grid, STARTS, dead=set())
@@ -264,6 +265,7 @@ async def test_four_robots_cover_everything_once(bus: Bus, router: str, room: Pa
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 async def test_a_robot_killed_mid_mission_is_taken_over(bus: Bus, router: str,
                                                         room: Path) -> None:
     victim = random.Random(4).randrange(len(STARTS))
@@ -276,14 +278,14 @@ async def test_a_robot_killed_mid_mission_is_taken_over(bus: Bus, router: str,
             moved.set()
 
     bus.subscribe(keys.sim_pose(bus.mission, victim), GroundTruthPose, on_pose)
-    await asyncio.sleep(0.2)
+    await through_router(bus, router)
     try:
         fleet.start()
         async with asyncio.timeout(TIMEOUT):
             await moved.wait()
         fleet.agents[victim].send_signal(signal.SIGKILL)
         survivors = [r for r in range(len(STARTS)) if r != victim]
-        await run_to_end(fleet, survivors)
+        await run_to_end(bus, fleet, survivors)
         state = await world_state(bus)
         check_complete(state, load_room(room), STARTS, dead={victim})
         check_ownership(fleet, dead={victim})
@@ -295,12 +297,13 @@ async def test_a_robot_killed_mid_mission_is_taken_over(bus: Bus, router: str,
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 async def test_one_sonar_at_a_time_completes(bus: Bus, router: str, room: Path) -> None:
     starts = STARTS[:3]
     fleet = await make_fleet(bus, router, room, starts)
     try:
         fleet.start(sonar="one-at-a-time", agent_args=("--sense-mode", "single"))
-        await run_to_end(fleet, list(range(len(starts))))
+        await run_to_end(bus, fleet, list(range(len(starts))))
         state = await world_state(bus)
         visits = check_complete(state, load_room(room), starts, dead=set())
         check_redundancy(fleet, visits)
@@ -310,6 +313,7 @@ async def test_one_sonar_at_a_time_completes(bus: Bus, router: str, room: Path) 
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 @pytest.mark.parametrize("single", [False, True], ids=["all", "one-at-a-time"])
 async def test_pillars_smaller_than_a_cell(bus: Bus, router: str, tmp_path: Path,
                                            single: bool) -> None:
@@ -323,7 +327,7 @@ async def test_pillars_smaller_than_a_cell(bus: Bus, router: str, tmp_path: Path
             fleet.start(sonar="one-at-a-time", agent_args=("--sense-mode", "single"))
         else:
             fleet.start()
-        await run_to_end(fleet, list(range(len(starts))))
+        await run_to_end(bus, fleet, list(range(len(starts))))
         state = await world_state(bus)
         grid = load_room(path)
         visits = check_complete(state, grid, starts, dead=set())

@@ -29,6 +29,7 @@ MOVES_BEFORE = 12  # robot 0's pose updates before the router goes away
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 async def test_a_router_restart_mid_mission_does_not_lose_the_ormstc_mission(
         tmp_path: Path, free_port: int) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port}"

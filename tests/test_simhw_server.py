@@ -11,6 +11,7 @@ from collections.abc import AsyncIterator, Iterator
 
 import pytest
 import zenoh
+from waiting import through_router, wait_until
 
 from bus import keys
 from bus.bridge import Bus
@@ -53,8 +54,9 @@ def start_simhw(endpoint: str, *extra: str) -> subprocess.Popen[str]:
     raise RuntimeError(f"simhw did not start: {err}")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def simhw(router: str) -> Iterator[subprocess.Popen[str]]:
+    """A fresh world per test: the tests move, fail and freeze robots."""
     proc = start_simhw(router)
     try:
         yield proc
@@ -106,10 +108,10 @@ async def test_world_state_matches_the_start(bus: Bus) -> None:
     assert all(visits[s] >= 1 for s in starts) and not (visits[~free] > 0).any()
 
 
-async def test_motion_replies_and_ground_truth(bus: Bus) -> None:
+async def test_motion_replies_and_ground_truth(bus: Bus, router: str) -> None:
     covers = bus.subscribe(keys.all_sim_covers(MISSION), CoverEvent)
     poses = bus.subscribe(keys.all_sim_poses(MISSION), GroundTruthPose)
-    await asyncio.sleep(0.3)  # let the subscriptions reach the router
+    await through_router(bus, router)  # the subscriptions reach the router
     before = await hw(bus, 0, "pose")
     r, c, heading = before.pose
     reply = await hw(bus, 0, "forward", cmd_id=42)
@@ -140,7 +142,9 @@ async def test_garbage_on_the_command_key_is_answered_and_counted(bus: Bus) -> N
     for payload in garbage:
         replies = await asyncio.to_thread(_raw_get, bus, keys.hw_cmd(MISSION, 0), payload)
         assert len(replies) == 1, "the server must answer garbage"
-        assert replies[0].err is not None or replies[0].ok is not None
+        # The bridge refuses what does not decode as a command before simhw sees it.
+        assert replies[0].ok is None and replies[0].err is not None
+        assert replies[0].err.payload.to_bytes() == b"malformed request"
     assert (await hw(bus, 1, "pose")).status == "ok"  # still serving
     after = _refused((await admin(bus, "status")).data)
     assert after - before == len(garbage)
@@ -159,8 +163,15 @@ async def test_failed_body_replies_failed(bus: Bus) -> None:
 
 async def test_frozen_body_replies_after_unfreeze(bus: Bus) -> None:
     assert (await admin(bus, "freeze", 2)).ok
+    before = (await admin(bus, "status")).data.get("count.commands", 0)
     held = asyncio.create_task(hw(bus, 2, "forward"))
-    await asyncio.sleep(0.5)
+
+    async def command_arrived() -> bool:
+        return (await admin(bus, "status")).data.get("count.commands", 0) != before
+
+    # simhw has the command and holds it: no reply, the body has not moved.
+    await wait_until(command_arrived, 5.0, "simhw to receive the forward command")
+    assert (await world(bus)).robots[2].pose[:2] == (2, 20)
     assert not held.done()
     assert (await admin(bus, "unfreeze", 2)).ok
     reply = await asyncio.wait_for(held, 5.0)

@@ -16,7 +16,7 @@ from agent.tree.barrier import StepVerdict, judge_step, reachable_nodes
 from bus import codec, keys
 from bus.codec import decode, decode_any, encode
 from bus.errors import DecodeError
-from bus.tree_messages import RadioStats, TreeReport
+from bus.messages import RadioStats, TreeReport
 from deploy.tree_observer import TeamObserver, connected
 from planner.treecover.failures import run_with_failures
 from planner.treecover.sim import run_coverage

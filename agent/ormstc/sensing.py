@@ -21,17 +21,14 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
+from planner.geometry import Heading, cell_of
 from planner.ormstc.types import Cell, CellStatus, SubCell
 
-# Headings as in bus.messages: 0 = N, 1 = E, 2 = S, 3 = W (clockwise); a right turn is +1.
-HEADING_DELTA: tuple[SubCell, ...] = ((-1, 0), (0, 1), (1, 0), (0, -1))
+# planner.geometry's numbering (clockwise from north, a right turn is +1), indexable by int
+HEADING_DELTA: tuple[SubCell, ...] = tuple(h.delta for h in Heading)
 _RELATIVE_SENSOR = {0: "front", 1: "right", 3: "left"}
 
 BodyTest = Callable[[Cell], bool]
-
-
-def cell_of(sub: SubCell) -> Cell:
-    return (sub[0] >> 1, sub[1] >> 1)
 
 
 def direction_to(cell: Cell, other: Cell) -> int:

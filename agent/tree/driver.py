@@ -34,8 +34,7 @@ from agent.tree.options import TreeOptions
 from bus import keys
 from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
-from bus.messages import DeathNotice, RobotEvent, RobotStatus
-from bus.tree_messages import TreeReport
+from bus.messages import DeathNotice, RobotEvent, RobotStatus, TreeReport
 from planner.errors import PlannerError
 from planner.treecover.team import TeamReplica
 from planner.treecover.trees import tree_from_spec

@@ -7,8 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from bus.messages import DeathNotice
-
-SubCell = tuple[int, int]
+from planner.geometry import SubCell
 
 Via = Literal["sub", "query", "token"]
 
