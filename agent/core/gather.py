@@ -56,10 +56,14 @@ class BodyAgent(AgentLife):
     def _dead_robots(self) -> Collection[int]:
         """Robots known dead."""
 
-    def _roster_wire(self) -> agreement.WireRoster:
-        """The roster this robot announces: the agreed set, else its proposal (if ready)."""
-        chosen = self.roster if self.roster is not None else self.proposal
-        return agreement.to_wire(chosen) if chosen else ()
+    def _roster_wire(self, state: str) -> agreement.WireRoster:
+        """The roster this robot announces in a status of ``state``: the agreed set, else its
+        proposal while gathering (a life that ends before agreeing must not look committed)."""
+        if self.roster is not None:
+            return agreement.to_wire(self.roster)
+        if state == agreement.GATHERING and self.proposal:
+            return agreement.to_wire(self.proposal)
+        return ()
 
     def participants(self) -> list[int]:
         """The agreed participants, in robot-id order (every robot before the agreement)."""

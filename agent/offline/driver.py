@@ -117,7 +117,7 @@ class OfflineAgent(BodyAgent):
         drops = self.bus.drops.total()
         text = message or (f"drops {drops}" if drops else "")
         status = RobotStatus(self.robot, self.incarnation, self.start, self.config.algo,
-                             self.digest, state, text, self._roster_wire())
+                             self.digest, state, text, self._roster_wire(state))
         self.peers.on_status(keys.status(self.bus.mission, self.robot), status)
         self.announcer.set(keys.status(self.bus.mission, self.robot), status)
 

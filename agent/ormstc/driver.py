@@ -166,7 +166,7 @@ class OrmstcAgent(BodyAgent):
         if self.start is not None:
             self.announcer.set(keys.status(self.bus.mission, self.robot), RobotStatus(
                 self.robot, self.config.incarnation, self.start, self.config.algo, "", state,
-                message, self._roster_wire()))
+                message, self._roster_wire(state)))
 
     def _broadcast(self, request: Broadcast) -> None:
         self.book.sent(self._publish(request.message))
