@@ -83,6 +83,8 @@ async def test_ormstc_survives_a_robot_that_never_boots(tmp_path: Path) -> None:
     outcome = await _judged(_trial("ormstc", 3, Fault("kill", 0.0, 2)), tmp_path)
     logs = (tmp_path / "trial" / "run" / "logs" / "agent-0.log").read_text()
     assert "robots [2] never announced a start and take no part" in logs
+    assert "never announced a start" in (tmp_path / "trial" / "up.log").read_text(), \
+        "the launcher says so too"
     assert outcome.complete
 
 
