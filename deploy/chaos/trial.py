@@ -97,6 +97,9 @@ async def run_trial(trial: Trial, workdir: Path) -> Outcome:
         except TimeoutError:
             _stop(up)
             code = None
+        except BaseException:  # Ctrl-C or a failed injection: leave no fleet behind
+            _stop(up)
+            raise
     finally:
         router.kill()
     return judge(trial, workdir, code, time.monotonic() - began, injector.done)
