@@ -45,11 +45,18 @@ async def run_campaign(campaign: Campaign, indices: Iterable[int], out: Path,
     return outcomes
 
 
+def not_injected(outcome: Outcome) -> bool:
+    """A fault fell after the mission's end (its target was gone): the trial ran without it."""
+    return any("no such process" in line or "never came" in line for line in outcome.injected)
+
+
 def table(outcomes: list[Outcome]) -> str:
     """Per scenario and in all: trials, missions lost, recordings with gaps, double work,
-    false suspicions and the makespan against the fault-free plan (median ratio)."""
+    false suspicions, the makespan against the fault-free plan (median ratio) and trials whose
+    faults fell after the mission had ended."""
     rows: list[tuple[str, ...]] = [
-        ("scenario", "trials", "lost", "gaps", "double", "false susp.", "makespan/plan")]
+        ("scenario", "trials", "lost", "gaps", "double", "false susp.", "makespan/plan",
+         "late faults")]
     by_scenario: dict[str, list[Outcome]] = {}
     by_algo: dict[str, list[Outcome]] = {}
     for o in outcomes:
@@ -61,7 +68,8 @@ def table(outcomes: list[Outcome]) -> str:
         rows.append((name, str(len(group)),
                      *(str(sum(o.verdict == v for o in group)) for v in VERDICTS[1:]),
                      str(sum(len(o.false_suspicions) for o in group)),
-                     f"{statistics.median(ratios):.2f}" if ratios else "-"))
+                     f"{statistics.median(ratios):.2f}" if ratios else "-",
+                     str(sum(not_injected(o) for o in group))))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(cell.ljust(w) if i == 0 else cell.rjust(w)
                                for i, (cell, w) in enumerate(zip(row, widths, strict=True)))
