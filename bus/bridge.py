@@ -29,6 +29,7 @@ from bus.codec import DEFAULT_MAX_PAYLOAD, Expected, decode, encode
 from bus.config import ConnectionSettings, open_session_async
 from bus.drops import DropCounter
 from bus.errors import BusClosedError, DecodeError
+from bus.faults import MessageFaults
 from bus.inbox import BoundedFifo, Inbox, LatestWins, Policy, Received
 from bus.messages.schema import ROBOT_NAMED
 from bus.qos import DEFAULT as DEFAULT_QOS
@@ -67,6 +68,9 @@ class Subscription(Generic[M]):
         if len(sample.payload) > self._bus.max_payload:
             self._bus.drops.count(keys.kind_of(key), "oversized",
                                   f"{key}: {len(sample.payload)} bytes")
+            return
+        faults = self._bus.faults
+        if faults is not None and faults.incoming_dropped(keys.kind_of(key)):
             return
         self._inbox.push(key, sample.payload.to_bytes())
 
@@ -188,8 +192,10 @@ class Bus:
 
     def __init__(self, session: zenoh.Session, mission: str, *,
                  drops: DropCounter | None = None,
-                 max_payload: int = DEFAULT_MAX_PAYLOAD) -> None:
+                 max_payload: int = DEFAULT_MAX_PAYLOAD,
+                 faults: MessageFaults | None = None) -> None:
         self.session = session
+        self.faults = faults  # injected message faults (bus.faults), for robustness trials
         self.mission = keys.check_mission(mission)
         self.drops = drops or DropCounter()
         self.max_payload = max_payload
@@ -241,9 +247,27 @@ class Bus:
     def publish(self, key: str, msg: Any, qos: Qos | None = None) -> None:
         """Encode and put ``msg`` on ``key`` with its kind's QoS (bus.qos) unless given."""
         chosen = qos or qos_for(type(msg))
-        self.session.put(key, encode(msg, max_size=self.max_payload),
-                         priority=chosen.priority, congestion_control=chosen.congestion,
-                         express=chosen.express)
+        payload = encode(msg, max_size=self.max_payload)
+
+        def put() -> None:
+            self.session.put(key, payload, priority=chosen.priority,
+                             congestion_control=chosen.congestion, express=chosen.express)
+
+        if self.faults is None:
+            put()
+            return
+        for delay in self.faults.outgoing(keys.kind_of(key)):
+            if delay <= 0:
+                put()
+            else:
+                self.loop.call_later(delay, self._put_late, put)
+
+    def _put_late(self, put: Callable[[], None]) -> None:
+        """A delayed copy (bus.faults): the session may have closed meanwhile."""
+        try:
+            put()
+        except Exception:  # noqa: BLE001 - a late copy of a closed session is simply lost
+            _log.debug("a delayed message was lost: the session closed")
 
     def subscribe(self, key: str, expected: Expected[M], handler: Callable[[str, M], None]
                   | None = None, policy: Policy | None = None) -> Subscription[M]:

@@ -340,6 +340,15 @@ class LivelinessService:
             heartbeats.close()
             notices.close()
 
+    def declare_absent(self, robot: int) -> None:
+        """Robot ``robot`` was never heard and the fleet goes on without it: declare its
+        first life dead, so simhw fences and clears its body and, should it boot after all,
+        it fences itself instead of covering what the others divided."""
+        notice = DeathNotice(robot, 1, self.robot, "heartbeat", self._clock())
+        if self.detector.on_death_notice(notice):
+            self.bus.publish(keys.death(self.bus.mission, robot), notice)
+            self._news(notice)
+
     def leave(self, now: float | None = None) -> None:
         """Announce a voluntary departure (reason "leaving") before the process exits."""
         stamp = self._clock() if now is None else now

@@ -37,6 +37,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "foxglove": ("deploy.cmd_foxglove", "serve a mission live to Foxglove (WebSocket)"),
     "ros-bridge": ("deploy.cmd_ros_bridge", "a mission's map, poses and paths as ROS 2 topics "
                                            "on Zenoh (rmw_zenoh's format)"),
+    "chaos": ("deploy.cmd_chaos", "a seeded robustness campaign: fleets under faults, judged"),
     "tree-cover": ("deploy.cmd_tree_cover", "connected coverage of a tree (NCOCTA / COCTA)"),
     "tree-fleet": ("deploy.cmd_tree_fleet", "NCOCTA / COCTA as a fleet: router, radio, K agents"),
     "radio": ("simhw.radio", "run the radio relay of tree coverage (same or adjacent node)"),

@@ -117,7 +117,8 @@ class MissionSetup:
             if len(starts) != settings.robots:
                 raise UsageError(f"--starts gives {len(starts)} robots, -n says {settings.robots}")
         else:
-            starts = random_starts(grid, settings.robots, settings.seed)
+            starts = random_starts(grid, settings.robots, settings.seed,
+                                   one_per_cell=algorithm(settings.algo).one_robot_per_cell)
         validate_starts(grid, coarsen(grid), starts)
         if algorithm(settings.algo).family is Family.ONLINE:
             # An on-line algorithm plans nothing (its agents get no map); its lockstep

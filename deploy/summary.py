@@ -95,6 +95,7 @@ class MissionTracker:
     takeovers: set[tuple[int, int | None]] = field(default_factory=set)
     replans: set[tuple[int, str]] = field(default_factory=set)  # (robot, what it said)
     heard: set[int] = field(default_factory=set)  # robots whose status was received
+    agreed: set[str] = field(default_factory=set)  # agreement notes already logged
     log: list[str] = field(default_factory=list)
     model: FleetModel = field(init=False)  # the figures' source, as in mstc monitor / report
 
@@ -175,6 +176,10 @@ class MissionTracker:
         self.heard.add(status.robot)
         if not self.views[status.robot].lost:
             self.views[status.robot].state = status.state
+        if status.state == "agreed" and status.message and status.message not in self.agreed:
+            # the participants' agreement names robots that take no part or died before it
+            self.agreed.add(status.message)
+            self.log.append(f"robot {status.robot}: {status.message}")
 
     def on_event(self, event: RobotEvent) -> None:
         if not 0 <= event.robot < self.robots:

@@ -176,3 +176,14 @@ def test_work_area_errors_are_specific(text: str, starts: list[tuple[int, int]],
 def test_odd_edge_rows_are_dropped() -> None:
     grid = OccupancyGrid(np.ones((5, 3), dtype=bool))
     assert coarsen(grid).shape == (2, 1)
+
+
+def test_random_starts_one_per_cell_never_shares_a_coarse_cell() -> None:
+    from planner.maps import resolve_world
+    from planner.placement import random_starts
+
+    grid = resolve_world("cave")
+    for seed in range(40):
+        starts = random_starts(grid, 6, seed, one_per_cell=True)
+        cells = {(r // 2, c // 2) for r, c in starts}
+        assert len(cells) == 6, (seed, starts)

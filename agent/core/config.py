@@ -14,6 +14,9 @@ from agent.core.errors import ConfigError
 from bus.argtypes import index, non_negative, positive, positive_int
 
 DEFAULT_START_TIMEOUT = 30.0
+# A robot never heard this long after one's own gather began takes no part (it never booted,
+# or died before it could announce its start); a loaded host boots a fleet in a few seconds.
+DEFAULT_BOOT_TIMEOUT = 10.0
 DEFAULT_HEARTBEAT_PERIOD = 0.2
 DEFAULT_DEAD_AFTER = 3.0
 # The tree agent re-announced every 1.0 s, the two others every 0.5 s; 0.5 is kept for all:
@@ -35,6 +38,7 @@ class AgentConfig:
     incarnation: int = 1
     seed: int = 0
     start_timeout: float = DEFAULT_START_TIMEOUT
+    boot_timeout: float = DEFAULT_BOOT_TIMEOUT
     heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD
     dead_after: float = DEFAULT_DEAD_AFTER
     announce_period: float = DEFAULT_ANNOUNCE_PERIOD
@@ -76,6 +80,10 @@ def add_body_arguments(parser: argparse.ArgumentParser) -> None:
                        metavar="SECONDS",
                        help="how long to wait for simhw, every start and every plan digest "
                             "(default %(default)s)")
+    group.add_argument("--boot-timeout", type=positive, default=DEFAULT_BOOT_TIMEOUT,
+                       metavar="SECONDS",
+                       help="a robot never heard this long into the gather takes no part; "
+                            "the others go on without it (default %(default)s)")
     group.add_argument("--hw-timeout", type=positive, default=DEFAULT_HW_TIMEOUT,
                        metavar="SECONDS",
                        help="longest wait for one motion of the body, lost replies and "
@@ -95,6 +103,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
     return AgentConfig(
         robot=args.id, k=args.robots, algo=args.algo, incarnation=args.incarnation,
         seed=body.get("seed", 0), start_timeout=body.get("start_timeout", DEFAULT_START_TIMEOUT),
+        boot_timeout=body.get("boot_timeout", DEFAULT_BOOT_TIMEOUT),
         heartbeat_period=args.heartbeat_period, dead_after=args.dead_after,
         announce_period=args.announce_period,
         hw_timeout=body.get("hw_timeout", DEFAULT_HW_TIMEOUT),

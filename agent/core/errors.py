@@ -27,6 +27,13 @@ class GatherTimeoutError(MissionFailedError):
     """Some robots did not announce their start (or plan digest) in time."""
 
 
+class StoodDownError(AgentError):
+    """The others agreed on the participants without this robot (it was heard too late):
+    it takes no part, so it never covers what they divided. Not a failure of the mission."""
+
+    exit_code = 0
+
+
 class DigestMismatchError(MissionFailedError):
     """Two robots computed different plans from what should be the same inputs."""
 

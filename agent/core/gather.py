@@ -1,9 +1,12 @@
 """The one gather of the agents with a simhw body: read where the body stands, announce it
-(RobotStatus "gathering"), and wait until every robot has announced its start.
+(RobotStatus "gathering"), and agree with the others on who takes part (agent.core.roster):
+every expected robot heard, known dead or absent past the boot timeout, and every live
+participant proposing the same set.
 
-Nobody moves, plans or publishes a mission message before it holds every start (so a peer
-listens before anything is said to it); ``_until`` is also the offline agents' wait for every
-plan digest. Each wait ends with a GatherTimeoutError naming the robots still missing.
+Nobody moves, plans or publishes a mission message before the agreement (so a peer listens
+before anything is said to it); ``_until`` is also the offline agents' wait for every plan
+digest. Each wait ends with a GatherTimeoutError naming the robots still missing; a robot
+left out of a set the others committed to stands down (StoodDownError, exit code 0).
 """
 
 from __future__ import annotations
@@ -11,12 +14,14 @@ from __future__ import annotations
 import asyncio
 import time
 from abc import abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Mapping
 
+from agent.core import roster as agreement
 from agent.core.config import AgentConfig
-from agent.core.errors import GatherTimeoutError
+from agent.core.errors import GatherTimeoutError, StoodDownError
 from agent.core.hw_link import HwLink
 from agent.core.lifecycle import AgentLife
+from bus.messages import RobotStatus
 
 
 class BodyAgent(AgentLife):
@@ -27,6 +32,8 @@ class BodyAgent(AgentLife):
     def __init__(self, config: AgentConfig) -> None:
         super().__init__(config)
         self.start = None
+        self.roster: agreement.Roster | None = None  # the agreed participants
+        self.proposal: agreement.Roster | None = None
         self._t0 = time.monotonic()
 
     def now(self) -> float:
@@ -42,8 +49,25 @@ class BodyAgent(AgentLife):
         """The body's command channel."""
 
     @abstractmethod
-    def _missing_starts(self) -> list[int]:
-        """Robots whose start is still unknown (and may still come)."""
+    def _peer_statuses(self) -> Mapping[int, RobotStatus]:
+        """The newest status heard of each robot (this one's may be among them)."""
+
+    @abstractmethod
+    def _dead_robots(self) -> Collection[int]:
+        """Robots known dead."""
+
+    def _roster_wire(self, state: str) -> agreement.WireRoster:
+        """The roster this robot announces in a status of ``state``: the agreed set, else its
+        proposal while gathering (a life that ends before agreeing must not look committed)."""
+        if self.roster is not None:
+            return agreement.to_wire(self.roster)
+        if state == agreement.GATHERING and self.proposal:
+            return agreement.to_wire(self.proposal)
+        return ()
+
+    def participants(self) -> list[int]:
+        """The agreed participants, in robot-id order (every robot before the agreement)."""
+        return sorted(self.roster) if self.roster is not None else list(range(self.config.k))
 
     @abstractmethod
     async def _wait_news(self) -> None:
@@ -60,8 +84,54 @@ class BodyAgent(AgentLife):
         self._gathering()
         self._say(f"body at {self.start}, gathering")
         self._status("gathering")
-        await self._until(self._missing_starts, "announce their start")
+        self.roster = await self._agree(self.start)
         return self.start
+
+    async def _agree(self, start: tuple[int, int]) -> agreement.Roster:
+        """The participants every live one of them agreed on (agent.core.roster)."""
+        began = self.now()
+        outcome: agreement.Outcome = agreement.Waiting(None, (), ())
+        try:
+            async with asyncio.timeout(self.config.start_timeout):
+                while True:
+                    boot_over = self.now() - began >= self.config.boot_timeout
+                    outcome = agreement.decide(self.robot, start, self.config.k,
+                                               self._peer_statuses(), self._dead_robots(),
+                                               boot_over)
+                    if isinstance(outcome, agreement.StandDown):
+                        why = (f"robot {self.robot} stands down: robot {outcome.decided_by} "
+                               f"and the others agreed on robots {sorted(outcome.roster)} "
+                               "without it")
+                        self._say(why)
+                        raise StoodDownError(why)
+                    if isinstance(outcome, agreement.Agreed):
+                        self._agreed(outcome)
+                        return outcome.roster
+                    if outcome.proposal is not None and outcome.proposal != self.proposal:
+                        self.proposal = outcome.proposal
+                        self._status("gathering")
+                    await self._wait_news()
+        except TimeoutError:
+            assert isinstance(outcome, agreement.Waiting)
+            raise GatherTimeoutError(
+                f"{outcome.describe()} within {self.config.start_timeout:g} s "
+                f"(mission {self.bus.mission!r}, {self.config.k} robots expected)") from None
+
+    def _agreed(self, outcome: agreement.Agreed) -> None:
+        """Announce the agreement (status "agreed", its message naming who is missing)."""
+        self.roster = outcome.roster
+        dead = sorted(set(outcome.roster) & set(self._dead_robots()))
+        notes = []
+        if outcome.absent:
+            notes.append(f"robots {list(outcome.absent)} never announced a start and take "
+                         "no part")
+            for robot in outcome.absent:
+                self.liveness.declare_absent(robot)
+        if dead:
+            notes.append(f"robots {dead} died before the mission: the others take over")
+        note = "; ".join(notes)
+        self._status("agreed", note)
+        self._say(f"participants {sorted(outcome.roster)}" + (f"; {note}" if note else ""))
 
     async def _until(self, missing: Callable[[], list[int]], what: str,
                      check: Callable[[], None] | None = None) -> None:

@@ -29,6 +29,7 @@ from bus import keys
 from bus.bridge import Bus
 from bus.config import ConnectionSettings
 from bus.errors import BusError
+from bus.faults import MessageFaults
 from bus.liveness import HeartbeatInfo, LivelinessService
 from bus.messages import AgentState, DeathNotice, EventKind, RobotEvent
 
@@ -110,7 +111,8 @@ class AgentLife(ABC):
         for sig in (signal.SIGTERM, signal.SIGINT):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.add_signal_handler(sig, self.stop.set)
-        async with Bus.connect(settings) as bus:
+        # Message faults for robustness trials (bus.faults; MSTC_FAULTS, unset in production)
+        async with Bus.connect(settings, faults=MessageFaults.from_env()) as bus:
             self.bus = bus
             self._wire(bus)
             try:

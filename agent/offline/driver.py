@@ -15,8 +15,9 @@ offline mission and the third watcher.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import logging
-from collections.abc import Coroutine
+from collections.abc import Collection, Coroutine, Mapping
 from typing import Any
 
 from agent.core.config import AgentConfig
@@ -126,7 +127,7 @@ class OfflineAgent(BodyAgent):
         drops = self.bus.drops.total()
         text = message or (f"drops {drops}" if drops else "")
         status = RobotStatus(self.robot, self.incarnation, self.start, self.config.algo,
-                             self.digest, state, text)
+                             self.digest, state, text, self._roster_wire(state))
         self.peers.on_status(keys.status(self.bus.mission, self.robot), status)
         self.announcer.set(keys.status(self.bus.mission, self.robot), status)
 
@@ -160,8 +161,11 @@ class OfflineAgent(BodyAgent):
     def _link(self) -> HwLink:
         return self.hardware.link
 
-    def _missing_starts(self) -> list[int]:
-        return self.peers.missing_starts()
+    def _peer_statuses(self) -> Mapping[int, RobotStatus]:
+        return self.peers.statuses
+
+    def _dead_robots(self) -> Collection[int]:
+        return self.peers.dead
 
     async def _wait_news(self) -> None:
         await self.refresh()
@@ -171,13 +175,24 @@ class OfflineAgent(BodyAgent):
         self.phase = "gathering"
 
     async def _gather(self) -> list[tuple[int, int]]:
+        """The agreed participants' starts, in robot-id order."""
         await self._gather_starts()
-        return [(self.peers.statuses[r].start[0], self.peers.statuses[r].start[1])
-                for r in range(self.config.k)]
+        assert self.roster is not None
+        return [self.roster[r] for r in sorted(self.roster)]
+
+    def _plan(self, starts: list[tuple[int, int]]) -> Plan:
+        """The plan of the participants; its robots carry their fleet ids (a robot that took
+        no part leaves a gap in the ids, not a section nobody walks)."""
+        plan = compute_plan(self.grid, starts, self.config.algo, self.options.tree,
+                            self.config.seed)
+        ids = self.participants()
+        return dataclasses.replace(plan, robots=tuple(
+            dataclasses.replace(rp, robot=ids[i]) for i, rp in enumerate(plan.robots)))
 
     def _check_digests(self) -> None:
+        members = set(self.participants())
         others = {r: s.plan_digest for r, s in self.peers.statuses.items()
-                  if s.plan_digest and s.plan_digest != self.digest}
+                  if r in members and s.plan_digest and s.plan_digest != self.digest}
         if others:
             described = ", ".join(f"robot {r} has {d[:12]}" for r, d in sorted(others.items()))
             raise DigestMismatchError(
@@ -189,17 +204,18 @@ class OfflineAgent(BodyAgent):
         starts = await self._gather()
         self.phase = "planning"
         try:
-            self.plan = compute_plan(self.grid, starts, self.config.algo, self.options.tree,
-                                     self.config.seed)
+            self.plan = self._plan(starts)
         except PlannerError as error:
             self._mission_status("failed", f"robot {self.robot} cannot plan: {error}")
             raise
         self.digest = plan_digest(self.plan)
+        mine = next(rp for rp in self.plan.robots if rp.robot == self.robot)
         self._say(f"plan {self.digest[:12]} makespan {self.plan.makespan} moves, mine "
-                  f"{self.plan.robots[self.robot].steps}")
+                  f"{mine.steps}")
         self._status("planned")
         self._check_digests()
-        await self._until(self.peers.missing_digests, "announce their plan digest",
+        await self._until(lambda: self.peers.missing_digests(self.participants()),
+                          "announce their plan digest",
                           self._check_digests)
         self._check_digests()
         rebalancing = self.options.recovery == "rebalance"

@@ -155,12 +155,9 @@ class PeerTable:
             if self._life_is_planned(notice):
                 machine.on_dead(notice.robot)
 
-    def missing_starts(self) -> list[int]:
-        return [r for r in range(self.k) if r not in self.statuses]
-
-    def missing_digests(self) -> list[int]:
-        """Robots whose plan digest is still unknown (robots known dead need none)."""
-        return [r for r in range(self.k)
+    def missing_digests(self, participants: list[int]) -> list[int]:
+        """Participants whose plan digest is still unknown (robots known dead need none)."""
+        return [r for r in participants
                 if r not in self.dead
                 and not (r in self.statuses and self.statuses[r].plan_digest)]
 

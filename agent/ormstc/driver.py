@@ -14,8 +14,8 @@ planner/ormstc/lockstep.py does in-process:
   the machine is ticked with the monotonic clock in seconds (agent.ormstc.options says why).
 
 Life cycle: the core's gather (agent.core.gather: read the pose, announce a status
-"gathering" once subscribed, wait until every robot has announced one, so nobody's StartMsg
-is published before a peer listens), run the machine; once it reports Done and every other
+"gathering" once subscribed, agree on the participants, so nobody's StartMsg is published
+before a peer listens), run the machine; once it reports Done and every other
 robot is done or dead, linger and leave.
 """
 
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+from collections.abc import Collection, Mapping
 
 from agent.core.config import AgentConfig
 from agent.core.errors import HardwareError
@@ -68,6 +69,7 @@ from planner.ormstc.types import (
     Request,
     Sense,
     SenseResult,
+    StartMsg,
     SubCell,
     Tick,
 )
@@ -164,7 +166,7 @@ class OrmstcAgent(BodyAgent):
         if self.start is not None:
             self.announcer.set(keys.status(self.bus.mission, self.robot), RobotStatus(
                 self.robot, self.config.incarnation, self.start, self.config.algo, "", state,
-                message))
+                message, self._roster_wire(state)))
 
     def _broadcast(self, request: Broadcast) -> None:
         self.book.sent(self._publish(request.message))
@@ -239,14 +241,16 @@ class OrmstcAgent(BodyAgent):
             async with asyncio.timeout(self.config.announce_period):
                 await self.news.wait()
 
-    def _missing_starts(self) -> list[int]:
-        return [r for r in range(self.config.k)
-                if r != self.robot and r not in self.statuses and r not in self.dead]
+    def _peer_statuses(self) -> Mapping[int, RobotStatus]:
+        return self.statuses
+
+    def _dead_robots(self) -> Collection[int]:
+        return self.dead
 
     def _others_finished(self) -> bool:
         return all(r == self.robot or r in self.dead
                    or (r in self.statuses and self.statuses[r].state == "done")
-                   for r in range(self.config.k))
+                   for r in self.participants())
 
     async def _drive(self, machine: OrmstcMachine) -> None:
         answer: Event | None = None
@@ -310,6 +314,12 @@ class OrmstcAgent(BodyAgent):
     async def _mission(self) -> None:
         start = await self._gather_starts()
         self.machine = OrmstcMachine(self.options.machine(self.config, start))
+        # Every participant's start is in the agreed roster: a StartMsg lost on the wire must
+        # not leave the machine waiting for it (nor for a silence to trigger a restatement).
+        assert self.roster is not None
+        for robot, sub in sorted(self.roster.items()):
+            if robot != self.robot:
+                self.pending.append(PeerMessage(robot, StartMsg(robot, sub)))
         self._status("covering")
         self._event("started")
         self._say("driving")

@@ -28,7 +28,11 @@ class Heartbeat:
 
 @dataclass(frozen=True)
 class RobotStatus:
-    """The hello a robot announces at start and re-announces periodically."""
+    """The hello a robot announces at start and re-announces periodically.
+
+    ``roster`` is the participant set this robot proposes (state "gathering") or has agreed
+    on (any later state): (robot, start row, start column) of every robot taking part, the
+    dead ones whose start was heard included (agent.core.roster)."""
 
     KIND: ClassVar[str] = "status"
     robot: int
@@ -38,6 +42,7 @@ class RobotStatus:
     plan_digest: str
     state: str
     message: str = ""
+    roster: tuple[tuple[int, int, int], ...] = ()
 
 
 Hello = RobotStatus

@@ -41,8 +41,9 @@ from bus.messages.world import BumpEvent, CoverEvent, GroundTruthPose, RobotTrut
 # generation; payloads of older generations stay readable for every kind that has not changed
 # since (docs/protocol.md, "Versioning rule"), so one kind's change does not make old
 # recordings of the others unreadable.
-# 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims; 3: TreeReport.gone/.dead
-SCHEMA_VERSION = 3
+# 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims; 3: TreeReport.gone/.dead;
+# 4: RobotStatus.roster
+SCHEMA_VERSION = 4
 
 
 class QosClass(enum.Enum):
@@ -135,7 +136,7 @@ HW_ADMIN = family("hw/admin", access=Access(serve=(SIMHW,), ask=(OPERATOR,)))
 KINDS: tuple[Kind, ...] = (
     # a robot's life (bus.messages.lifecycle)
     Kind(Heartbeat, (family("hb/{robot}", access=BY_OWN),), C.HEARTBEAT),
-    Kind(RobotStatus, (family("status/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(RobotStatus, (family("status/{robot}", access=BY_OWN),), C.CRITICAL, since=4),
     Kind(RobotEvent, (family("event/{robot}", access=BY_OWN),), C.CRITICAL),
     # <robot>: the dead one; any robot may declare a death (bus.liveness checks the detector)
     Kind(DeathNotice, (family("death/{robot}", access=Access(put=(ROBOTS,))),), C.CRITICAL),

@@ -1,0 +1,89 @@
+"""A campaign: trials one after another, a progress line each, a table at the end, one JSON
+line per trial, and the one command that re-runs each failing trial alone."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import statistics
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from deploy.chaos.schedule import Campaign, Fault, Trial, make_trial
+from deploy.chaos.trial import Outcome, run_trial
+
+VERDICTS = ("ok", "lost", "gap", "double")
+
+
+def rerun_command(campaign: Campaign, index: int, out: Path) -> str:
+    """The command line that runs trial ``index`` of ``campaign`` alone."""
+    argv = ["mstc", "chaos", "--seed", str(campaign.seed), "--worlds", ",".join(campaign.worlds),
+            "--algos", ",".join(campaign.algos),
+            "--sizes", ",".join(str(k) for k in campaign.sizes),
+            "--scenarios", ",".join(campaign.scenarios), "--only", str(index),
+            "--out", str(out / f"rerun-{index}")]
+    return shlex.join(argv)
+
+
+async def run_campaign(campaign: Campaign, indices: Iterable[int], out: Path,
+                       say: Callable[[str], None]) -> list[Outcome]:
+    out.mkdir(parents=True, exist_ok=True)
+    outcomes: list[Outcome] = []
+    indices = list(indices)
+    with (out / "trials.jsonl").open("a") as jsonl:
+        for number, index in enumerate(indices, 1):
+            trial = make_trial(campaign, index)
+            outcome = await run_trial(trial, out / f"trial-{index}")
+            outcomes.append(outcome)
+            jsonl.write(json.dumps(outcome.to_json(), sort_keys=True) + "\n")
+            jsonl.flush()
+            lost = sum(o.verdict != "ok" for o in outcomes)
+            say(f"[{number}/{len(indices)}] trial {index}: {trial.algo} k={trial.robots} "
+                f"{trial.world} {trial.scenario}: {outcome.verdict.upper()} "
+                f"({outcome.wall_seconds:.1f} s{'; ' + outcome.detail if outcome.detail else ''})"
+                f" — {lost} not ok so far")
+    return outcomes
+
+
+def not_injected(outcome: Outcome) -> bool:
+    """A fault fell after the mission's end (its target was gone): the trial ran without it."""
+    return any("no such process" in line or "never came" in line for line in outcome.injected)
+
+
+def table(outcomes: list[Outcome]) -> str:
+    """Per scenario and in all: trials, missions lost, recordings with gaps, double work,
+    false suspicions, the makespan against the fault-free plan (median ratio) and trials whose
+    faults fell after the mission had ended."""
+    rows: list[tuple[str, ...]] = [
+        ("scenario", "trials", "lost", "gaps", "double", "false susp.", "makespan/plan",
+         "late faults")]
+    by_scenario: dict[str, list[Outcome]] = {}
+    by_algo: dict[str, list[Outcome]] = {}
+    for o in outcomes:
+        by_scenario.setdefault(o.trial.scenario, []).append(o)
+        by_algo.setdefault(f"algo {o.trial.algo}", []).append(o)
+    groups = {**by_scenario, **dict(sorted(by_algo.items())), "all": outcomes}
+    for name, group in groups.items():
+        ratios = [o.makespan / o.planned for o in group if o.complete and o.planned]
+        rows.append((name, str(len(group)),
+                     *(str(sum(o.verdict == v for o in group)) for v in VERDICTS[1:]),
+                     str(sum(len(o.false_suspicions) for o in group)),
+                     f"{statistics.median(ratios):.2f}" if ratios else "-",
+                     str(sum(not_injected(o) for o in group))))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(cell.ljust(w) if i == 0 else cell.rjust(w)
+                               for i, (cell, w) in enumerate(zip(row, widths, strict=True)))
+                     for row in rows)
+
+
+def load_outcomes(path: Path) -> list[Outcome]:
+    """The outcomes of a trials.jsonl (to tabulate a campaign that was cut short)."""
+    outcomes = []
+    for line in path.read_text().splitlines():
+        if not line.strip():
+            continue
+        data = json.loads(line)
+        trial = dict(data.pop("trial"))
+        trial["faults"] = tuple(Fault(**f) for f in trial["faults"])
+        outcomes.append(Outcome(trial=Trial(**trial), **data))
+    return outcomes

@@ -1,0 +1,136 @@
+"""Seeded fault schedules: which trial runs which world, algorithm, team and faults.
+
+Pure: a trial is a function of the campaign's options and its index, so ``mstc chaos
+--only I`` with the same options re-runs trial I alone, faults and message-fault seed
+included (process timing on a loaded host is the one thing a seed cannot replay).
+Times are wall seconds after the trial's ``mstc up`` was started: agents announce their
+start ~1-2 s in, an example-world mission at full speed ends ~5-8 s in.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+# What a trial's schedule is made of; "mixed" combines a kill, a hang and message loss.
+SCENARIOS = ("none", "early-kill", "kill", "kills", "hang", "long-hang", "loss",
+             "router-restart", "router-freeze", "partition", "mixed")
+PROCESS_FAULTS = ("kill", "hang", "router-kill", "router-freeze", "partition")
+# LookSteps only tell a report which re-entries were made to sense (no agent reads them):
+# losing one blinds the recording, which is not what a loss trial tests.
+LOSS_SPEC = ("*.drop=0.03;*.lose=0.03;*.dup=0.05;*.delay=0.05;*.reorder=0.05;window=0.1;"
+             "look.dup=0")
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One process fault: ``kind`` in PROCESS_FAULTS, ``robot`` its target (None: the
+    router), ``seconds`` how long a hang, freeze, partition or router outage lasts. With a
+    ``mark``, ``at`` counts from the moment the target's log first shows that text (a phase
+    of its life: "gathering", "participants", "driving", "completed")."""
+
+    kind: str
+    at: float
+    robot: int | None = None
+    seconds: float = 0.0
+    mark: str = ""
+
+    def describe(self) -> str:
+        target = "router" if self.robot is None else f"robot {self.robot}"
+        span = f" for {self.seconds:.1f} s" if self.seconds else ""
+        after = f" after {self.mark!r}" if self.mark else ""
+        return f"{self.kind} {target} at {self.at:.1f} s{after}{span}"
+
+
+@dataclass(frozen=True)
+class Trial:
+    index: int
+    seed: int
+    world: str
+    algo: str
+    robots: int
+    scenario: str
+    faults: tuple[Fault, ...] = ()
+    messages: str = ""  # a bus.faults spec for every agent, "" for none
+
+    @property
+    def killed(self) -> set[int]:
+        """Robots that are meant to die (killed, or hung past the death timeout)."""
+        return {f.robot for f in self.faults if f.robot is not None
+                and (f.kind == "kill" or (f.kind == "hang" and f.seconds >= DEATH_HANG_S))}
+
+    def describe(self) -> str:
+        parts = [f.describe() for f in self.faults]
+        if self.messages:
+            parts.append(f"messages {self.messages}")
+        return "; ".join(parts) or "no faults"
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """The options a campaign's trials are drawn from."""
+
+    seed: int = 0
+    worlds: tuple[str, ...] = ("example",)
+    algos: tuple[str, ...] = ("nb", "bt", "opt", "ormstc")
+    sizes: tuple[int, ...] = (2, 3, 4)
+    scenarios: tuple[str, ...] = SCENARIOS
+    extra: dict[str, str] = field(default_factory=dict)
+
+
+LONG_HANG_S = 4.0  # longer than the agents' death timeout (3 s by default)
+# A process stopped this long loses its liveliness token (~0.75 x the 1 s Zenoh lease):
+# declared dead by design, so not a false suspicion.
+DEATH_HANG_S = 0.75
+
+
+def make_trial(campaign: Campaign, index: int) -> Trial:
+    """Trial ``index`` of ``campaign`` (the same every time)."""
+    rng = random.Random(f"{campaign.seed}/{index}")
+    world = rng.choice(campaign.worlds)
+    algo = rng.choice(campaign.algos)
+    k = rng.choice(campaign.sizes)
+    scenario = campaign.scenarios[index % len(campaign.scenarios)]
+    seed = rng.randrange(1 << 16)
+    victims = rng.sample(range(k), k)
+    faults: list[Fault] = []
+    messages = ""
+    if scenario == "early-kill":  # before or while announcing its start
+        faults.append(Fault("kill", round(rng.uniform(0.3, 1.8), 2), victims[0]))
+    elif scenario == "kill":
+        faults.append(Fault("kill", round(rng.uniform(0.5, 6.0), 2), victims[0]))
+    elif scenario == "kills":  # up to k - 1, from start-up on
+        for robot in victims[:max(1, rng.randint(1, k - 1))]:
+            faults.append(Fault("kill", round(rng.uniform(0.3, 6.0), 2), robot))
+    elif scenario == "hang":
+        faults.append(Fault("hang", round(rng.uniform(1.0, 5.0), 2), victims[0],
+                            round(rng.uniform(0.1, 1.5), 2)))
+    elif scenario == "long-hang":
+        faults.append(Fault("hang", round(rng.uniform(1.0, 4.0), 2), victims[0],
+                            round(rng.uniform(LONG_HANG_S, LONG_HANG_S + 2.0), 2)))
+    elif scenario == "loss":
+        messages = f"seed={seed};{LOSS_SPEC}"
+    elif scenario == "router-restart":
+        faults.append(Fault("router-kill", round(rng.uniform(1.0, 5.0), 2), None,
+                            round(rng.uniform(0.3, 1.5), 2)))
+    elif scenario == "router-freeze":
+        faults.append(Fault("router-freeze", round(rng.uniform(1.0, 5.0), 2), None,
+                            round(rng.uniform(0.3, 1.0), 2)))
+    elif scenario == "partition":
+        faults.append(Fault("partition", round(rng.uniform(1.5, 5.0), 2), victims[0],
+                            round(rng.uniform(0.3, 2.0), 2)))
+    elif scenario == "mixed":
+        faults.append(Fault("kill", round(rng.uniform(0.3, 6.0), 2), victims[0]))
+        if k > 2:
+            faults.append(Fault("hang", round(rng.uniform(1.0, 5.0), 2), victims[1],
+                                round(rng.uniform(0.3, 1.5), 2)))
+        messages = f"seed={seed};{LOSS_SPEC}"
+    if k == 1:  # the one robot must live: faults that kill it prove nothing
+        faults = [f for f in faults if f.kind not in ("kill",) and
+                  not (f.kind == "hang" and f.seconds >= DEATH_HANG_S)]
+    return Trial(index, seed, world, algo, k, scenario,
+                 tuple(sorted(faults, key=lambda f: f.at)), messages)

@@ -1,0 +1,169 @@
+"""One chaos trial: a router of its own, ``mstc up --connect`` to it with the trial's
+message faults in the agents' environment, the process faults injected on schedule, and the
+verdict from simhw's ground truth (summary.json) and from the recording (``mstc report``).
+
+Verdicts: ``ok``; ``lost`` (ground truth: the mission did not cover everything although a
+robot was left); ``gap`` (the mission completed but its recording says otherwise: data lost
+on the way, not a failure); ``double`` (a cell owned by two live robots, or a revisit the
+algorithm promises not to make, in the recording); ``false-suspicion`` counts robots
+declared dead that no fault was meant to kill.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import os
+import signal
+import socket
+import subprocess
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bus.faults import ENV as FAULTS_ENV
+from deploy.chaos.inject import Injector, RouterProcess
+from deploy.chaos.schedule import Trial
+from deploy.fleet import mstc_argv
+
+TRIAL_TIMEOUT_S = 120.0
+# Report invariants that say two robots did the same work (not a gap in the data).
+DOUBLE_WORK = ("no sub-cell covered twice", "no cell owned by two", "at most twice")
+
+
+@dataclass
+class Outcome:
+    trial: Trial
+    verdict: str
+    detail: str
+    wall_seconds: float
+    complete: bool = False
+    coverage: float = 0.0
+    makespan: int = 0
+    planned: int = 0
+    robots_lost: list[int] = field(default_factory=list)
+    false_suspicions: list[int] = field(default_factory=list)
+    report_failures: list[str] = field(default_factory=list)
+    injected: list[str] = field(default_factory=list)
+    exit_code: int | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        data = asdict(self)
+        data["trial"] = self.trial.to_json()
+        return data
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def up_argv(trial: Trial, endpoint: str, run_dir: Path, record: Path) -> list[str]:
+    return mstc_argv(
+        "up", "-n", str(trial.robots), "--world", trial.world, "--algo", trial.algo,
+        "--seed", str(trial.seed), "--time-scale", "0", "--plain", "--connect", endpoint,
+        "--mission", f"chaos-{trial.index}-{trial.seed}", "--run-dir", str(run_dir),
+        "--record", str(record), "--linger", "1", "--stall-timeout", "25")
+
+
+async def run_trial(trial: Trial, workdir: Path) -> Outcome:
+    """Run ``trial`` in ``workdir`` (made here) and judge it."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    run_dir, record = workdir / "run", workdir / "recording.jsonl"
+    router = RouterProcess(f"tcp/127.0.0.1:{free_port()}", workdir / "router.log")
+    began = time.monotonic()
+    await router.start()
+    injector = Injector(router, run_dir)
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    env.pop(FAULTS_ENV, None)
+    if trial.messages:
+        env[FAULTS_ENV] = trial.messages
+    try:
+        with (workdir / "up.log").open("wb") as out:
+            up = subprocess.Popen(up_argv(trial, router.endpoint, run_dir, record),
+                                  stdin=subprocess.DEVNULL, stdout=out,
+                                  stderr=subprocess.STDOUT, env=env, start_new_session=True)
+        t0 = time.monotonic()
+        try:
+            async with asyncio.timeout(TRIAL_TIMEOUT_S), asyncio.TaskGroup() as group:
+                for fault in trial.faults:
+                    group.create_task(_at(t0 + (0.0 if fault.mark else fault.at), injector,
+                                          fault))
+                code = await asyncio.to_thread(up.wait)
+        except TimeoutError:
+            _stop(up)
+            code = None
+        except BaseException:  # Ctrl-C or a failed injection: leave no fleet behind
+            _stop(up)
+            raise
+    finally:
+        router.kill()
+    return judge(trial, workdir, code, time.monotonic() - began, injector.done)
+
+
+async def _at(when: float, injector: Injector, fault: Any) -> None:
+    await asyncio.sleep(max(0.0, when - time.monotonic()))
+    await injector.apply(fault)
+
+
+def _stop(up: subprocess.Popen[bytes]) -> None:
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(up.pid, signal.SIGTERM)
+    try:
+        up.wait(15.0)
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(up.pid, signal.SIGKILL)
+        up.wait(5.0)
+
+
+def judge(trial: Trial, workdir: Path, code: int | None, wall: float,
+          injected: list[str]) -> Outcome:
+    """The verdict of a finished trial from its summary.json and its recording."""
+    outcome = Outcome(trial, "ok", "", round(wall, 2), injected=injected, exit_code=code)
+    summary_path = workdir / "run" / "summary.json"
+    if code is None:
+        outcome.verdict, outcome.detail = "lost", f"mstc up did not end in {TRIAL_TIMEOUT_S:g} s"
+        return outcome
+    try:
+        summary = json.loads(summary_path.read_text())
+    except (OSError, ValueError):
+        outcome.verdict = "lost"
+        outcome.detail = f"no summary.json (mstc up exit {code}): " + _tail(workdir / "up.log")
+        return outcome
+    outcome.complete = bool(summary["complete"])
+    outcome.coverage = float(summary["coverage"])
+    outcome.makespan = int(summary["makespan_moves"])
+    outcome.planned = int(summary.get("planned_makespan") or 0)
+    outcome.robots_lost = sorted(int(r["robot"]) for r in summary["robots_lost"])
+    outcome.false_suspicions = [r for r in outcome.robots_lost if r not in trial.killed]
+    report = subprocess.run(mstc_argv("report", "--json", str(workdir / "recording.jsonl")),
+                            capture_output=True, text=True, check=False)
+    try:
+        invariants = json.loads(report.stdout)["invariants"]
+    except (ValueError, KeyError):
+        invariants = [{"name": "recording readable", "status": "failed",
+                       "detail": report.stderr.strip()[-300:]}]
+    outcome.report_failures = [f"{inv['name']}: {inv['detail']}" for inv in invariants
+                               if inv["status"] == "failed"]
+    if not outcome.complete:
+        outcome.verdict = "lost"
+        outcome.detail = f"{summary['outcome']} ({outcome.coverage:.1f} %)"
+    elif any(any(mark in failure for mark in DOUBLE_WORK)
+             for failure in outcome.report_failures):
+        outcome.verdict = "double"
+        outcome.detail = "; ".join(outcome.report_failures)
+    elif outcome.report_failures:
+        outcome.verdict = "gap"
+        outcome.detail = "; ".join(outcome.report_failures)
+    return outcome
+
+
+def _tail(path: Path, lines: int = 3) -> str:
+    with contextlib.suppress(OSError):
+        return " | ".join(path.read_text(errors="replace").strip().splitlines()[-lines:])
+    return ""
