@@ -155,9 +155,10 @@ def test_robots_known_dead_need_no_plan_digest() -> None:
 
     peers = PeerTable(robot=0, k=3, drops=DropCounter())
     peers.on_status("mstc/t/status/0", RobotStatus(0, 1, (0, 0), "nb", "abc", "x"))
-    assert peers.missing_digests() == [1, 2]
+    participants = [0, 1, 2]  # the agreed roster (agent/core/roster.py)
+    assert peers.missing_digests(participants) == [1, 2]
     peers.on_death(DeathNotice(2, 1, 0, "token", 0.0))
-    assert peers.missing_digests() == [1]
+    assert peers.missing_digests(participants) == [1]
 
 
 def test_news_wakes_the_waiters() -> None:
