@@ -20,7 +20,7 @@ import numpy as np
 
 from planner.errors import UnsupportedPlanError
 from planner.invariants import InvariantViolation, check_path_moves
-from planner.offline.machine import Finished, MoveTo, RobotAction, TakeoverDecision, WaitFor
+from planner.offline.machine import RingRobot, TakeoverDecision
 from planner.types import BoolArray, IntArray, Plan, SubCell
 
 _NEVER = 1 << 62
@@ -57,91 +57,18 @@ def check_replayable(plan: Plan) -> None:
     validate_replay(plan, {}, 0)
 
 
-class BalancedRobot:
-    """Feed it :meth:`on_covered` (any robot stood on a cycle index), :meth:`on_dead` and
-    :meth:`on_moved`; ask :meth:`next_action`. Every start is covered from the outset."""
+class BalancedRobot(RingRobot):
+    """A balanced plan's robot: its own walk (walk-out and region), then takeovers along
+    shortest paths to what is left of a dead robot's walk."""
 
     def __init__(self, plan: Plan, robot: int, *, takeover: bool = True) -> None:
-        by_id = {rp.robot: rp for rp in plan.robots}
-        if robot not in by_id:
-            raise UnsupportedPlanError(f"robot {robot} is not in the plan")
-        cycle = self.cycle = plan.cycle
-        self.robot = robot
-        self.takeover = takeover  # False: a re-plan (on_replan), not this robot, recovers
+        super().__init__(plan, robot, takeover=takeover)
+        cycle = plan.cycle
         self.free: BoolArray = cycle.index >= 0
         self.regions = {rp.robot: tuple(dict.fromkeys(cycle.position(s) for s in rp.path))
                         for rp in plan.robots}
-        order = sorted(by_id, key=lambda r: by_id[r].start_index)
-        self.successor = dict(zip(order, order[1:] + order[:1], strict=True))
-        self.watching = self.successor[robot]
-        mine = by_id[robot]
-        self.position = cycle.position(mine.path[0])
-        self._pending = deque(cycle.position(s) for s in mine.path[1:])
-        self.own_steps_left = len(self._pending)
-        self.covered = np.zeros(cycle.n, dtype=bool)
-        self._uncovered = cycle.n
-        self.dead: set[int] = set()
-        self._decisions: list[TakeoverDecision] = []
-        for rp in plan.robots:
-            self.on_covered(cycle.position(rp.path[0]))
 
     check_replayable = staticmethod(check_replayable)
-
-    @property
-    def all_covered(self) -> bool:
-        return self._uncovered == 0
-
-    @property
-    def about_to_take_over(self) -> bool:
-        """True when the next :meth:`next_action` will decide a takeover (idle, coverage
-        incomplete, the watched robot known dead): a driver may first refresh its knowledge."""
-        return (self.takeover and not self._pending and not self.all_covered
-                and self.watching != self.robot
-                and self.watching in self.dead)
-
-    @property
-    def section_done(self) -> bool:
-        """True once the robot has walked its own plan (walk-out and region) to the end."""
-        return self.own_steps_left == 0
-
-    def on_covered(self, index: int) -> None:
-        if not self.covered[index]:
-            self.covered[index] = True
-            self._uncovered -= 1
-
-    def on_dead(self, robot: int) -> None:
-        self.dead.add(robot)
-
-    def on_moved(self) -> int:
-        index = self._pending.popleft()
-        self.position = index
-        if self.own_steps_left > 0:
-            self.own_steps_left -= 1
-        self.on_covered(index)
-        return index
-
-    def next_action(self) -> RobotAction:
-        if not self._pending and not self.all_covered:
-            self._decide()
-        if self._pending:
-            index = self._pending[0]
-            return MoveTo(index, self.cycle.at(index))
-        if self.all_covered:
-            return Finished()
-        return WaitFor(self.watching)
-
-    @property
-    def pending_route(self) -> tuple[int, ...]:
-        """The cycle indices this robot is still to walk, in order."""
-        return tuple(self._pending)
-
-    def on_replan(self, route: tuple[int, ...]) -> None:
-        """A re-plan after a death (planner.offline.rebalance): walk ``route`` from here."""
-        self._pending = deque(route)
-
-    def pop_decisions(self) -> list[TakeoverDecision]:
-        out, self._decisions = self._decisions, []
-        return out
 
     def _decide(self) -> None:
         while self.takeover and self.watching != self.robot and self.watching in self.dead:

@@ -147,41 +147,37 @@ def check_replayable(plan: Plan) -> None:
     validate_replay(plan, {}, 0)
 
 
-class OfflineRobot:
-    """One robot's offline MSTC life as a sans-I/O state machine (Alg. 2 / Alg. 4).
+class RingRobot:
+    """What every robot that walks a plan on a ring shares (OfflineRobot here,
+    planner.balanced.machine.BalancedRobot): its walk, what it knows covered and dead, and
+    the ring of successors it watches. Subclasses say how a takeover walks (``_decide``).
 
     Feed it what the robot learns — :meth:`on_covered` (anyone covered a cycle index),
     :meth:`on_dead` (a robot is known dead), :meth:`on_moved` (my last MoveTo is done) — and
-    ask :meth:`next_action`. Every start is covered from the outset. The robot walks its own
-    plan; then, while coverage is incomplete, it watches its successor along the cycle and,
-    once that one is known dead, walks CCW to the last uncovered sub-cell of its region and
-    watches the dead robot's successor (chained). Decisions are kept for :meth:`pop_decisions`.
+    ask :meth:`next_action`. Every start is covered from the outset. Decisions are kept for
+    :meth:`pop_decisions`.
     """
 
     def __init__(self, plan: Plan, robot: int, *, takeover: bool = True) -> None:
-        n = plan.cycle.n
         by_id = {rp.robot: rp for rp in plan.robots}
         if robot not in by_id:
             raise UnsupportedPlanError(f"robot {robot} is not in the plan")
+        cycle = self.cycle = plan.cycle
         self.robot = robot
         self.takeover = takeover  # False: a re-plan (on_replan), not this robot, recovers
-        self.cycle = plan.cycle
-        self.regions = {rp.robot: region_of(rp, n) for rp in plan.robots}
         order = sorted(by_id, key=lambda r: by_id[r].start_index)
         self.successor = dict(zip(order, order[1:] + order[:1], strict=True))
         self.watching = self.successor[robot]
         mine = by_id[robot]
-        self.position = mine.start_index
-        self._pending = deque(plan.cycle.position(sub) for sub in mine.path[1:])
+        self.position = cycle.position(mine.path[0])
+        self._pending = deque(cycle.position(sub) for sub in mine.path[1:])
         self.own_steps_left = len(self._pending)
-        self.covered = np.zeros(n, dtype=bool)
-        self._uncovered = n
+        self.covered = np.zeros(cycle.n, dtype=bool)
+        self._uncovered = cycle.n
         self.dead: set[int] = set()
         self._decisions: list[TakeoverDecision] = []
         for rp in plan.robots:
-            self.on_covered(rp.start_index)
-
-    check_replayable = staticmethod(check_replayable)
+            self.on_covered(cycle.position(rp.path[0]))
 
     @property
     def all_covered(self) -> bool:
@@ -242,6 +238,24 @@ class OfflineRobot:
         """Takeovers decided since the last call, in order."""
         out, self._decisions = self._decisions, []
         return out
+
+    def _decide(self) -> None:
+        raise NotImplementedError
+
+
+class OfflineRobot(RingRobot):
+    """One robot's offline MSTC life as a sans-I/O state machine (Alg. 2 / Alg. 4).
+
+    The robot walks its own plan; then, while coverage is incomplete, it watches its
+    successor along the cycle and, once that one is known dead, walks CCW to the last
+    uncovered sub-cell of its region and watches the dead robot's successor (chained).
+    """
+
+    def __init__(self, plan: Plan, robot: int, *, takeover: bool = True) -> None:
+        super().__init__(plan, robot, takeover=takeover)
+        self.regions = {rp.robot: region_of(rp, plan.cycle.n) for rp in plan.robots}
+
+    check_replayable = staticmethod(check_replayable)
 
     def last_uncovered(self, robot: int) -> int | None:
         """Highest cycle index (CCW from its first) of ``robot``'s region not yet covered."""
