@@ -10,17 +10,12 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
-import signal
 import sys
-from pathlib import Path
 
-from bus.argtypes import positive
 from bus.config import add_connection_arguments, settings_from_args
 from bus.errors import BusError
 from deploy.errors import UsageError
-
-CONNECT_TIMEOUT_S = 30.0
+from deploy.viewers import add_watch_arguments, run_viewer, stop_on_signals
 
 
 def _port(text: str) -> int:
@@ -38,21 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="WebSocket port (default %(default)s; 0: any free port)")
     parser.add_argument("--host", default="127.0.0.1",
                         help="address to serve on (default %(default)s: this machine only)")
-    parser.add_argument("--duration", type=positive, default=None, metavar="S",
-                        help="stop after S seconds")
-    parser.add_argument("--connect-timeout", type=positive, default=CONNECT_TIMEOUT_S,
-                        metavar="S", help="give up (exit 2) if no router answers within S "
-                                          "seconds (default %(default)s)")
-    parser.add_argument("--exit-when-done", action="store_true",
-                        help="stop once the mission has a verdict and every robot is done, "
-                             "dead or gone")
-    parser.add_argument("--world-period", type=positive, default=2.0, metavar="S",
-                        help="re-query the world and the robots' state every S seconds "
-                             "(default %(default)s)")
-    parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
-                        help="serve the fleet of this `mstc up` run directory (default: the "
-                             "latest under runs/, when neither --mission nor MSTC_MISSION "
-                             "is given)")
+    add_watch_arguments(parser, "serve")
     add_connection_arguments(parser)
 
 
@@ -79,17 +60,7 @@ def run(args: argparse.Namespace) -> int:
 
     async def main() -> None:
         stop = asyncio.Event()
-        loop = asyncio.get_running_loop()
-        task = asyncio.current_task()
-
-        def on_signal() -> None:
-            if not watcher.connected and task is not None:
-                task.cancel()
-            stop.set()
-
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            with contextlib.suppress(NotImplementedError, RuntimeError):
-                loop.add_signal_handler(sig, on_signal)
+        stop_on_signals(stop, lambda: watcher.connected)
         try:
             async with asyncio.TaskGroup() as group:
                 group.create_task(until_connected(lambda: watcher.connected, settings,
@@ -102,14 +73,9 @@ def run(args: argparse.Namespace) -> int:
             raise failed.exceptions[0] from None
 
     try:
-        asyncio.run(main())
-    except BusError as error:
-        raise UsageError(str(error)) from error
-    except asyncio.CancelledError:
-        return 130
+        return run_viewer(main())
     finally:
         screen.stop()
-    return 0
 
 
 def _say(text: str) -> None:

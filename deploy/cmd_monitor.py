@@ -15,12 +15,10 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from bus.argtypes import positive
 from bus.config import ConnectionSettings, add_connection_arguments, settings_from_args
 from bus.errors import BusError
 from deploy.errors import UsageError
-
-CONNECT_TIMEOUT_S = 30.0
+from deploy.viewers import add_watch_arguments
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,22 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "is not a terminal)")
     parser.add_argument("--record", type=Path, default=None, metavar="FILE",
                         help="write every message to FILE as JSON Lines (see docs/protocol.md)")
-    parser.add_argument("--duration", type=positive, default=None, metavar="S",
-                        help="stop after S seconds (counted from the start, waiting for the "
-                             "router included)")
-    parser.add_argument("--connect-timeout", type=positive, default=CONNECT_TIMEOUT_S,
-                        metavar="S", help="give up (exit 2) if no router answers within S "
-                                          "seconds (default %(default)s)")
-    parser.add_argument("--exit-when-done", action="store_true",
-                        help="stop once the mission has a verdict and every robot is done, "
-                             "dead or gone")
-    parser.add_argument("--world-period", type=positive, default=2.0, metavar="S",
-                        help="re-query the world and the robots' state every S seconds "
-                             "(default %(default)s)")
-    parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
-                        help="watch the fleet of this `mstc up` run directory (default: the "
-                             "latest under runs/, when neither --mission nor MSTC_MISSION "
-                             "is given)")
+    add_watch_arguments(parser, "watch")
     add_connection_arguments(parser)
 
 

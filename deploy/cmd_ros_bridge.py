@@ -9,19 +9,14 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
 import os
-import signal
 import sys
 from dataclasses import replace
-from pathlib import Path
 
-from bus.argtypes import positive
 from bus.config import add_connection_arguments, open_session_async, settings_from_args
 from bus.errors import BusError
 from deploy.errors import UsageError
-
-CONNECT_TIMEOUT_S = 30.0
+from deploy.viewers import add_watch_arguments, run_viewer, stop_on_signals
 
 
 def _domain(text: str) -> int:
@@ -41,21 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ros-connect", action="append", metavar="ENDPOINT", default=None,
                         help="publish the ROS topics through this Zenoh router (e.g. "
                              "rmw_zenohd's tcp/localhost:7447; default: the mission's)")
-    parser.add_argument("--duration", type=positive, default=None, metavar="S",
-                        help="stop after S seconds")
-    parser.add_argument("--connect-timeout", type=positive, default=CONNECT_TIMEOUT_S,
-                        metavar="S", help="give up (exit 2) if no router answers within S "
-                                          "seconds (default %(default)s)")
-    parser.add_argument("--exit-when-done", action="store_true",
-                        help="stop once the mission has a verdict and every robot is done, "
-                             "dead or gone")
-    parser.add_argument("--world-period", type=positive, default=2.0, metavar="S",
-                        help="re-query the world and the robots' state every S seconds "
-                             "(default %(default)s)")
-    parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
-                        help="bridge the fleet of this `mstc up` run directory (default: the "
-                             "latest under runs/, when neither --mission nor MSTC_MISSION "
-                             "is given)")
+    add_watch_arguments(parser, "bridge")
     add_connection_arguments(parser)
 
 
@@ -83,18 +64,8 @@ def run(args: argparse.Namespace) -> int:
 
     async def main() -> None:
         stop = asyncio.Event()
-        loop = asyncio.get_running_loop()
-        task = asyncio.current_task()
         connected = False
-
-        def on_signal() -> None:
-            if not connected and task is not None:
-                task.cancel()
-            stop.set()
-
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            with contextlib.suppress(NotImplementedError, RuntimeError):
-                loop.add_signal_handler(sig, on_signal)
+        stop_on_signals(stop, lambda: connected)
         watchers: list[Watcher] = []
         try:
             async with asyncio.TaskGroup() as group:
@@ -117,13 +88,7 @@ def run(args: argparse.Namespace) -> int:
         except* (BusError, UsageError) as failed:
             raise failed.exceptions[0] from None
 
-    try:
-        asyncio.run(main())
-    except BusError as error:
-        raise UsageError(str(error)) from error
-    except asyncio.CancelledError:
-        return 130
-    return 0
+    return run_viewer(main())
 
 
 def _say(text: str) -> None:
