@@ -42,19 +42,12 @@ def run(args: argparse.Namespace) -> int:
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
-    def handle_signals() -> None:
-        signal.signal(signal.SIGTERM, on_signal)
-        signal.signal(signal.SIGINT, on_signal)
-
-    def ready() -> None:
-        # again once the session is open: a handler Zenoh's runtime may install while
-        # opening must not take SIGINT from us (a signalled router once never exited)
-        handle_signals()
-        print(f"{READY_MARK}, listening on {', '.join(settings.listen)}", flush=True)
-
-    handle_signals()
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
     try:
-        run_router(settings, stop, ready=ready, parent=parent)
+        run_router(settings, stop, ready=lambda: print(
+            f"{READY_MARK}, listening on {', '.join(settings.listen)}", flush=True),
+            parent=parent)
     except BusError as error:
         print(f"mstc router: error: {error}", file=sys.stderr)
         return 1
