@@ -276,24 +276,35 @@ async def test_recorded_runs_a_launcher_with_a_recorder_beside_it(router: str,
 
     async def launcher() -> int:
         async with Bus.connect(settings) as bus:
-            await asyncio.sleep(1.5)  # the recorder's subscription reaches the router
+            # Robot 1 beats until the recorder has written one: from then on its subscription
+            # is known to the router (no fixed sleep, which a loaded machine outruns).
+            probe = 0
+            async with asyncio.timeout(20.0):
+                while not heartbeats_in(path, robot=1):
+                    probe += 1
+                    bus.publish(keys.heartbeat(mission, 1),
+                                Heartbeat(1, 1, probe, None, "x", 0.0))
+                    await asyncio.sleep(0.1)
             for seq in range(1, 6):
                 bus.publish(keys.heartbeat(mission, 0), Heartbeat(0, 1, seq, None, "x", 0.0))
-            await wait_until(lambda: len(heartbeats_in(path)) >= 5, 10.0,
+            await wait_until(lambda: len(heartbeats_in(path)) >= 5, 20.0,
                              "the recorder to write the 5 heartbeats")
         return 7
 
     assert await recorded(launcher(), settings, path) == 7
     recording = read_recording(path)
     assert recording.header.source == "up" and recording.header.mission == mission
-    assert [r.msg.seq for r in recording.records if r.kind == "heartbeat"] == [1, 2, 3, 4, 5]
+    assert [r.msg.seq for r in recording.records
+            if r.kind == "heartbeat" and r.msg.robot == 0] == [1, 2, 3, 4, 5]
 
 
-def heartbeats_in(path: Path) -> list[int]:
-    """The heartbeats recorded so far (none before the header line is out)."""
+def heartbeats_in(path: Path, robot: int = 0) -> list[int]:
+    """The sequence numbers of ``robot``'s heartbeats recorded so far (none before the
+    header line is out)."""
     if not path.exists() or "\n" not in path.read_text():
         return []
-    return [r.msg.seq for r in read_recording(path).records if r.kind == "heartbeat"]
+    return [r.msg.seq for r in read_recording(path).records
+            if r.kind == "heartbeat" and r.msg.robot == robot]
 
 
 async def test_recorded_does_not_wait_for_a_router_that_never_came(tmp_path: Path) -> None:
