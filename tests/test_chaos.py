@@ -39,8 +39,8 @@ def test_a_failing_trial_s_command_re_runs_that_trial_alone(tmp_path: Path) -> N
 
 
 def _trial(algo: str, k: int, *faults: Fault, messages: str = "",
-           scenario: str = "test") -> Trial:
-    return Trial(0, 11, "example", algo, k, scenario, faults, messages)
+           scenario: str = "test", world: str = "example") -> Trial:
+    return Trial(0, 11, world, algo, k, scenario, faults, messages)
 
 
 async def _judged(trial: Trial, tmp_path: Path) -> Outcome:
@@ -80,7 +80,13 @@ async def test_a_death_while_taking_over_is_survived(tmp_path: Path) -> None:
 @pytest.mark.integration
 @pytest.mark.slow
 async def test_ormstc_survives_a_robot_that_never_boots(tmp_path: Path) -> None:
-    outcome = await _judged(_trial("ormstc", 3, Fault("kill", 0.0, 2)), tmp_path)
+    # The agreement is the subject, not the walk: a small world keeps the ORMSTC mission short
+    # (two robots on `example` walk for 25 s after the 10 s boot timeout).
+    world = tmp_path / "small.txt"
+    world.write_text("\n".join(["................"] * 4 + ["....####........"] * 2
+                               + ["................"] * 6) + "\n")
+    outcome = await _judged(_trial("ormstc", 3, Fault("kill", 0.0, 2), world=str(world)),
+                            tmp_path)
     logs = (tmp_path / "trial" / "run" / "logs" / "agent-0.log").read_text()
     assert "robots [2] never announced a start and take no part" in logs
     assert "never announced a start" in (tmp_path / "trial" / "up.log").read_text(), \

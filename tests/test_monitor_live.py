@@ -214,11 +214,11 @@ async def test_real_fleet_with_a_kill_report_against_ground_truth(router: str,
             watching = group.create_task(watch_live(
                 settings, watcher, stop=stop, record=record, world_period=0.5))
             await wait_recording(watcher)
-            # time scale 10: one move takes ~0.2 s of wall time, slow enough to kill midway.
+            # time scale 20: one move takes ~0.1 s of wall time, slow enough to kill midway.
             robots = ";".join(f"{r},{c}" for r, c in STARTS)
             procs.append(subprocess.Popen(
                 [sys.executable, "-m", "deploy.cli", "simhw", "--world", str(world),
-                 "--robots", robots, "--time-scale", "10", "--connect", router,
+                 "--robots", robots, "--time-scale", "20", "--connect", router,
                  "--mission", mission], stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True))
             procs += [start_agent(world, router, mission, r, "bt") for r in range(len(STARTS))]
@@ -362,7 +362,7 @@ async def test_ormstc_fleet_joined_midway_and_at_the_end_shows_the_same_picture(
             robots = ";".join(f"{r},{c}" for r, c in ORMSTC_STARTS)
             procs.append(subprocess.Popen(
                 [sys.executable, "-m", "deploy.cli", "simhw", "--world", str(world),
-                 "--robots", robots, "--time-scale", "10", "--connect", router,
+                 "--robots", robots, "--time-scale", "20", "--connect", router,
                  "--mission", mission], stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True))
             procs += [subprocess.Popen(
