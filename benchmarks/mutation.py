@@ -24,9 +24,11 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
 import os
 import random
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -210,21 +212,46 @@ def scratch_copy() -> Path:
     return target
 
 
+def kill_leftovers(copy: Path) -> int:
+    """SIGKILL every process still running the mutant copy (found by the PYTHONPATH it
+    inherited): a timed-out fleet test leaves `mstc up` and its agents, each in a session of
+    its own, which neither killing pytest nor its process group reaches."""
+    mark, killed = f"PYTHONPATH={copy}".encode(), 0
+    for proc_dir in Path("/proc").iterdir():
+        if not proc_dir.name.isdigit() or int(proc_dir.name) == os.getpid():
+            continue
+        try:
+            inherited = (proc_dir / "environ").read_bytes().split(b"\0")
+        except OSError:  # gone already, or not ours to read
+            continue
+        if mark in inherited:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(int(proc_dir.name), signal.SIGKILL)
+                killed += 1
+    return killed
+
+
 def run_tests(copy: Path, tests: list[str] | tuple[str, ...], timeout: float,
               fast: bool = True) -> tuple[bool, str]:
     """(killed, last line of pytest's output); ``fast=False`` lets marked tests run too."""
     args = FAST if fast else FAST[:-2]
     env = {**os.environ, "PYTHONPATH": str(copy), "PYTHONDONTWRITEBYTECODE": "1"}
+    proc = subprocess.Popen([sys.executable, "-m", "pytest", *args, *tests], cwd=copy,
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
     try:
-        done = subprocess.run([sys.executable, "-m", "pytest", *args, *tests], cwd=copy,
-                              env=env, capture_output=True, text=True, timeout=timeout)
+        stdout, stderr = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
         return True, "timed out"
-    lines = [line for line in done.stdout.splitlines() if line.strip()]
-    last = lines[-1] if lines else done.stderr.strip()[-200:]
-    if done.returncode == NO_TESTS:
+    finally:
+        kill_leftovers(copy)
+    lines = [line for line in stdout.splitlines() if line.strip()]
+    last = lines[-1] if lines else stderr.strip()[-200:]
+    if proc.returncode == NO_TESTS:
         raise RuntimeError(f"no test ran: {' '.join(tests)} ({last})")
-    return done.returncode != 0, last
+    return proc.returncode != 0, last
 
 
 def mutate_modules(modules: list[str], limit: int, seed: int, timeout: float,
