@@ -99,6 +99,8 @@ FAULTS = {
     "long-hang": (Fault("hang", 0.3, 1, 4.5, mark="driving"),),
     "router-restart": (Fault("router-kill", 3.0, None, 0.8),),
     "router-freeze": (Fault("router-freeze", 3.0, None, 0.8),),
+    # a robot let run 10 ms of every 100 ms for 3 s while it drives
+    "starve": (Fault("starve", 0.3, 1, 3.0, mark="driving", share=0.1),),
 }
 
 
@@ -139,7 +141,10 @@ async def test_a_partitioned_robot_heals_and_the_mission_completes(tmp_path: Pat
 async def test_a_ci_sized_campaign_loses_no_mission(tmp_path: Path) -> None:
     from deploy.chaos.campaign import run_campaign
 
-    scenarios = tuple(s for s in SCENARIOS if s != "partition" or partition_problem() is None)
+    # Host-wide starvation would starve the test run's other worker too: it is measured by
+    # benchmarks/bench_chaos.py, not run here.
+    scenarios = tuple(s for s in SCENARIOS if s != "starve-host"
+                      and (s != "partition" or partition_problem() is None))
     campaign = Campaign(seed=2, algos=("nb", "bt", "opt"), sizes=(2, 3), scenarios=scenarios)
     lines: list[str] = []
     outcomes = await run_campaign(campaign, range(12), tmp_path, lines.append)

@@ -1,6 +1,8 @@
 """Process and network faults on a running fleet, from outside, by PID: SIGKILL, hangs
-(SIGSTOP/SIGCONT of any length), router kill/restart and freeze, and partitions of one
-robot from its router (iptables DROP of its TCP connections on loopback, healed after).
+(SIGSTOP/SIGCONT of any length), router kill/restart and freeze, partitions of one robot
+from its router (iptables DROP of its TCP connections on loopback, healed after), and CPU
+starvation: of one robot (stopped for all but ``share`` of every 100 ms, a process the
+scheduler hardly runs) or of the host (one busy process per core beside the fleet).
 
 The router is the injector's own child (``mstc chaos`` starts it and runs ``mstc up
 --connect``), so a restart brings the same router back on the same port. A partition needs
@@ -16,6 +18,7 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 from pathlib import Path
 
 from bus.router import READY_MARK
@@ -120,7 +123,7 @@ class Injector:
 
     async def apply(self, fault: Fault) -> None:
         if fault.robot is None:
-            await self._router(fault)
+            await (self._starve_host(fault) if fault.kind == "starve" else self._router(fault))
             return
         pid = self.agent_pid(fault.robot)
         if pid is None:
@@ -144,6 +147,8 @@ class Injector:
                 await asyncio.sleep(fault.seconds)
             finally:
                 _signal(pid, signal.SIGCONT)
+        elif fault.kind == "starve":
+            await _throttle(pid, fault.seconds, fault.share)
         elif fault.kind == "partition":
             ports = tcp_ports(pid, self.router.port)
             for port in ports:
@@ -169,6 +174,18 @@ class Injector:
                     await asyncio.sleep(0.02)
         return False
 
+    async def _starve_host(self, fault: Fault) -> None:
+        hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"],
+                                 stdin=subprocess.DEVNULL, start_new_session=True)
+                for _ in range(os.cpu_count() or 1)]
+        try:
+            await asyncio.sleep(fault.seconds)
+        finally:
+            for hog in hogs:
+                hog.kill()
+                hog.wait()
+        self.done.append(f"{fault.describe()}: {len(hogs)} busy processes")
+
     async def _router(self, fault: Fault) -> None:
         if fault.kind == "router-freeze":
             self.router.signal(signal.SIGSTOP)
@@ -181,6 +198,24 @@ class Injector:
             await asyncio.sleep(fault.seconds)
             await self.router.start()
         self.done.append(fault.describe())
+
+
+THROTTLE_PERIOD_S = 0.1
+
+
+async def _throttle(pid: int, seconds: float, share: float) -> None:
+    """Let ``pid`` run for ``share`` of every period, stopped for the rest, for ``seconds``."""
+    running = THROTTLE_PERIOD_S * min(max(share, 0.0), 1.0)
+    loop = asyncio.get_running_loop()
+    end = loop.time() + seconds
+    try:
+        while loop.time() < end:
+            _signal(pid, signal.SIGSTOP)
+            await asyncio.sleep(THROTTLE_PERIOD_S - running)
+            _signal(pid, signal.SIGCONT)
+            await asyncio.sleep(running)
+    finally:
+        _signal(pid, signal.SIGCONT)
 
 
 def _signal(pid: int, sig: int) -> None:

@@ -15,8 +15,10 @@ from typing import Any
 
 # What a trial's schedule is made of; "mixed" combines a kill, a hang and message loss.
 SCENARIOS = ("none", "early-kill", "kill", "kills", "hang", "long-hang", "loss",
-             "router-restart", "router-freeze", "partition", "mixed")
-PROCESS_FAULTS = ("kill", "hang", "router-kill", "router-freeze", "partition")
+             "router-restart", "router-freeze", "partition", "mixed", "starve", "starve-host")
+# "starve" throttles one robot to a share of the CPU; "starve-host" (robot None) runs one
+# busy process per core beside the whole fleet, so it starves anything else on the host too.
+PROCESS_FAULTS = ("kill", "hang", "router-kill", "router-freeze", "partition", "starve")
 # LookSteps only tell a report which re-entries were made to sense (no agent reads them):
 # losing one blinds the recording, which is not what a loss trial tests.
 LOSS_SPEC = ("*.drop=0.03;*.lose=0.03;*.dup=0.05;*.delay=0.05;*.reorder=0.05;window=0.1;"
@@ -26,21 +28,26 @@ LOSS_SPEC = ("*.drop=0.03;*.lose=0.03;*.dup=0.05;*.delay=0.05;*.reorder=0.05;win
 @dataclass(frozen=True)
 class Fault:
     """One process fault: ``kind`` in PROCESS_FAULTS, ``robot`` its target (None: the
-    router), ``seconds`` how long a hang, freeze, partition or router outage lasts. With a
-    ``mark``, ``at`` counts from the moment the target's log first shows that text (a phase
-    of its life: "gathering", "participants", "driving", "completed")."""
+    router; for "starve", the whole host), ``seconds`` how long a hang, freeze, partition,
+    router outage or starvation lasts, ``share`` the part of each 100 ms a starved robot may
+    run. With a ``mark``, ``at`` counts from the moment the target's log first shows that
+    text (a phase of its life: "gathering", "participants", "driving", "completed")."""
 
     kind: str
     at: float
     robot: int | None = None
     seconds: float = 0.0
     mark: str = ""
+    share: float = 1.0
 
     def describe(self) -> str:
-        target = "router" if self.robot is None else f"robot {self.robot}"
+        host = "host" if self.kind == "starve" else "router"
+        target = host if self.robot is None else f"robot {self.robot}"
         span = f" for {self.seconds:.1f} s" if self.seconds else ""
         after = f" after {self.mark!r}" if self.mark else ""
-        return f"{self.kind} {target} at {self.at:.1f} s{after}{span}"
+        cpu = f" to {self.share:.0%} of a CPU" if self.kind == "starve" and self.robot is not None \
+            else ""
+        return f"{self.kind} {target}{cpu} at {self.at:.1f} s{after}{span}"
 
 
 @dataclass(frozen=True)
@@ -123,6 +130,13 @@ def make_trial(campaign: Campaign, index: int) -> Trial:
     elif scenario == "partition":
         faults.append(Fault("partition", round(rng.uniform(1.5, 5.0), 2), victims[0],
                             round(rng.uniform(0.3, 2.0), 2)))
+    elif scenario == "starve":
+        faults.append(Fault("starve", round(rng.uniform(0.5, 4.0), 2), victims[0],
+                            round(rng.uniform(1.0, 4.0), 2),
+                            share=round(rng.uniform(0.05, 0.3), 2)))
+    elif scenario == "starve-host":
+        faults.append(Fault("starve", round(rng.uniform(0.5, 4.0), 2), None,
+                            round(rng.uniform(1.0, 4.0), 2)))
     elif scenario == "mixed":
         faults.append(Fault("kill", round(rng.uniform(0.3, 6.0), 2), victims[0]))
         if k > 2:
