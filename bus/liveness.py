@@ -109,13 +109,25 @@ class FailureDetector:
         The router lets only robots publish notices but cannot check what they say: the
         detector must be a participant this detector knows (alive, or dead since, whose
         re-announced verdicts stay learnable), and a known robot cannot be declared dead in
-        an incarnation it never had (which would fence its future lives in advance)."""
+        an incarnation it never had (which would fence its future lives in advance).
+
+        A dead detector's verdict is learnable only about a robot not alive here: across a
+        partition each side declares the other dead, and the far side's verdicts, heard once
+        it heals, would otherwise stop the robots that went on working (simhw, which the
+        near side still reaches, fences the far side; simhw refuses them too)."""
         detector = notice.detected_by
         if detector is None:
             return "no detector"
         if detector != self.detector and detector not in self._peers \
                 and detector not in self._dead:
             return f"detector {detector} is not a known participant"
+        if detector != self.detector and detector not in self._peers \
+                and detector != notice.robot:
+            if notice.robot == self.detector:
+                return f"detector {detector} is dead: its verdict on this robot is not " \
+                       f"acted on (simhw fences this robot if it really was dead)"
+            if notice.robot in self._peers:
+                return f"detector {detector} is dead and robot {notice.robot} is alive here"
         if notice.robot == self.detector:
             return None  # about this robot: its service checks against its own life
         peer = self._peers.get(notice.robot)

@@ -25,6 +25,14 @@ def on_death(service: HwService, notice: DeathNotice, policy: DeadBodies) -> boo
         if service.drops is not None:
             service.drops.count("death", "invalid", f"death of robot {notice.robot}")
         return False
+    detector = notice.detected_by
+    if detector is not None and detector != notice.robot and service.life_is_fenced(detector):
+        # A fenced life's verdict: across a healed partition, the far side declares the near
+        # side dead; fencing the near side too would leave no robot able to move.
+        if service.drops is not None:
+            service.drops.count("death", "dead_detector",
+                                f"robot {detector} (fenced) on robot {notice.robot}")
+        return False
     service.fence_life(notice.robot, notice.incarnation)
     if policy == "vanish":
         service.world.vanish(notice.robot)

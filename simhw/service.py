@@ -104,6 +104,7 @@ class HwService:
         self._locks = [asyncio.Lock() for _ in range(world.k)]
         self._changed = asyncio.Event()
         self._incarnation: dict[int, int] = {}
+        self._commanded: dict[int, int] = {}  # robot -> the life its last command came from
         self._covers_sent = 0
         self.firsts = FirstVisitors(world.grid.free.shape)
         self._bumps_sent = 0
@@ -152,7 +153,12 @@ class HwService:
         if cmd.incarnation < newest:
             return f"incarnation {cmd.incarnation} of robot {cmd.robot} is stale ({newest})"
         self._incarnation[cmd.robot] = cmd.incarnation
+        self._commanded[cmd.robot] = cmd.incarnation
         return ""
+
+    def life_is_fenced(self, robot: int) -> bool:
+        """True while ``robot``'s newest life seen here is fenced (no newer life since)."""
+        return self._incarnation.get(robot, 0) > self._commanded.get(robot, 0)
 
     def fence_life(self, robot: int, incarnation: int) -> None:
         """Refuse from now on every command of ``robot``'s lives up to ``incarnation``."""

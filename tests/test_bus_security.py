@@ -131,6 +131,11 @@ def test_death_notices_need_a_known_detector_and_a_life_the_robot_had() -> None:
     # a dead detector's verdicts are re-announced by others and stay learnable
     assert fd.on_death_notice(DeathNotice(2, 1, 1, "token", 0.0))
     assert fd.notice_problem(DeathNotice(3, 1, 2, "token", 0.0)) is None
+    # ... but not about a robot alive here, nor about this robot: across a healed partition
+    # the far side's verdicts would stop the side that went on working
+    assert "alive here" in str(fd.notice_problem(DeathNotice(1, 2, 2, "token", 0.0)))
+    assert "is dead" in str(fd.notice_problem(DeathNotice(0, 1, 2, "token", 0.0)))
+    assert fd.notice_problem(DeathNotice(0, 1, 1, "token", 0.0)) is None  # a live detector
 
 
 # --- a real secured router ------------------------------------------------------------------

@@ -267,3 +267,23 @@ async def test_world_state_first_visitors_and_crossers_match_the_cover_events() 
     got.update({((int(r), int(c)), (int(r) + 1, int(c))): int(down[r, c])
                 for r, c in np.argwhere(down != NO_ROBOT)})
     assert got == crossed and set(crossed.values()) == {0, 1}
+
+
+async def test_a_fenced_robots_verdicts_fence_nobody() -> None:
+    """Across a healed partition the far side's death notices about the near side arrive
+    after the near side had the far side fenced: simhw refuses them, or nobody could move."""
+    from bus.messages import DeathNotice
+    from simhw.dead_bodies import on_death
+
+    svc, _ = make(["...."], [Pose(0, 0), Pose(0, 3)])
+    assert (await svc.command(0, cmd(0, "pose", inc=1))).status == "ok"
+    assert (await svc.command(1, cmd(1, "pose", inc=1))).status == "ok"
+    assert on_death(svc, DeathNotice(1, 1, 0, "token", 0.0), "vanish")  # 0 sees 1 die
+    assert svc.life_is_fenced(1) and not svc.life_is_fenced(0)
+    assert not on_death(svc, DeathNotice(0, 1, 1, "token", 0.0), "vanish")  # 1's, too late
+    assert (await svc.command(0, cmd(0, "pose", inc=1))).status == "ok"
+    assert (await svc.command(1, cmd(1, "pose", inc=1))).status == "rejected"
+    # a new life of robot 1 is a live detector again
+    assert (await svc.command(1, cmd(1, "pose", inc=2))).status == "ok"
+    assert not svc.life_is_fenced(1)
+    assert on_death(svc, DeathNotice(0, 1, 1, "token", 0.0), "vanish")

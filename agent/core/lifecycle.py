@@ -174,5 +174,7 @@ def run_agent(agent: AgentLife, settings: ConnectionSettings) -> int:
         print(f"mstc agent: error: {error}", file=sys.stderr)
         return 2
     if code != 0:
-        print(f"mstc agent {agent.robot}: error: {agent.error}", file=sys.stderr)
+        # A fenced robot did what it must (it was declared dead, so it stopped): not an error.
+        word = "fenced" if code == FencedError.exit_code else "error"
+        print(f"mstc agent {agent.robot}: {word}: {agent.error}", file=sys.stderr)
     return code
