@@ -21,6 +21,7 @@ from deploy.monitor.model import FleetModel
 from deploy.monitor.plain import PlainPrinter
 from deploy.monitor.recorder import Recorder, Recorders, RecordWriter
 from deploy.monitor.types import Header, MonitorEvent, Record, Recording
+from deploy.monitor.verdict import Verdict, mission_verdict
 from deploy.monitor.view import FeedStats, render
 
 T = TypeVar("T")
@@ -116,20 +117,34 @@ class Watcher:
         self.screen = screen
         self.recorder = recorder
         self.connected = False
+        self.verdict: Verdict | None = None
 
     def feed(self, records: Iterable[Record]) -> None:
+        fed = False
         for record in records:
+            fed = True
             events = self.model.apply(record)
             if self.recorder is not None:
                 self.recorder.write(record)
             if events:
                 self.screen.events(events)
+        if fed and self.verdict is None:
+            self._judge()
+
+    def _judge(self) -> None:
+        """Take the mission's verdict once it has one; one read off the robots' messages
+        (ORMSTC and tree missions publish none) is told as an event of its own."""
+        self.verdict = mission_verdict(self.model)
+        if self.verdict is not None and not self.verdict.published:
+            state = self.verdict.state
+            self.screen.events([self.model.note(
+                self.model.t, "mission_complete" if state == "complete" else "mission_failed",
+                f"mission {state}: {self.verdict.message}")])
 
     def settled(self) -> bool:
         """The mission has a final verdict and every robot is done, dead or gone."""
-        model = self.model
-        return model.mission is not None and model.mission.state != "running" and all(
-            v.done or v.dead or v.left for v in model.robots.values())
+        return self.verdict is not None and all(
+            v.done or v.dead or v.left for v in self.model.robots.values())
 
 
 async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,

@@ -22,6 +22,7 @@ from deploy.monitor.figures import mission_figures
 from deploy.monitor.model import FleetModel, RobotView
 from deploy.monitor.plain import format_event
 from deploy.monitor.types import MonitorEvent
+from deploy.monitor.verdict import verdict_word
 
 PALETTE = ("red", "green", "blue", "magenta", "cyan", "yellow", "bright_red", "bright_green",
            "bright_blue", "bright_magenta", "bright_cyan", "orange3", "purple", "turquoise2",
@@ -215,7 +216,7 @@ def side_panel(model: FleetModel, stats: FeedStats) -> RenderableType:
     figures.add_row("drops", drops + (f", invalid {invalid}" if invalid else ""),
                     style="red" if stats.dropped or invalid else "")
     figures.add_row("queue", f"{stats.queue} (max {stats.max_queue})")
-    mission = model.mission.state if model.mission else "running?"
+    mission = verdict_word(model)
     figures.add_row("mission", mission, style="green" if mission == "complete" else "")
     figures.add_row("source", stats.source)
     return Group(Panel(figures, title="fleet"), Panel(robot_table(model), title="robots"))
