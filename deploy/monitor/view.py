@@ -21,6 +21,7 @@ from rich.text import Text
 from deploy.monitor.figures import mission_figures
 from deploy.monitor.model import FleetModel, RobotView
 from deploy.monitor.plain import format_event
+from deploy.monitor.redundancy import look_revisits
 from deploy.monitor.types import MonitorEvent
 from deploy.monitor.verdict import verdict_word
 
@@ -205,9 +206,7 @@ def side_panel(model: FleetModel, stats: FeedStats) -> RenderableType:
     figures.add_row("sim time", f"{model.sim_time:.1f} s{scale}{covered_in}")
     known, alive, dead, done = model.counts()
     figures.add_row("robots", f"{known}: {alive} alive, {dead} dead, {done} done")
-    looks = sum(v.look_steps for v in model.robots.values())
-    figures.add_row("redundancy", f"{numbers.revisits} revisits"
-                    + (f" ({looks} of them look steps)" if looks else ""))
+    figures.add_row("redundancy", redundancy_line(model, numbers.revisits))
     figures.add_row("claims", f"{model.claims.claims}, {len(model.claims.conflicts)} "
                               f"conflicts settled, {len(model.claims.unsettled())} open")
     figures.add_row("messages", f"{model.kinds.total()} ({stats.rate:.0f}/s)")
@@ -220,6 +219,16 @@ def side_panel(model: FleetModel, stats: FeedStats) -> RenderableType:
     figures.add_row("mission", mission, style="green" if mission == "complete" else "")
     figures.add_row("source", stats.source)
     return Group(Panel(figures, title="fleet"), Panel(robot_table(model), title="robots"))
+
+
+def redundancy_line(model: FleetModel, revisits: int) -> str:
+    """Revisits, the part of them that were look steps, and every look step (a look into a
+    sub-cell not entered before is no revisit)."""
+    looks = sum(v.look_steps for v in model.robots.values())
+    if not looks:
+        return f"{revisits} revisits"
+    return f"{revisits} revisits, {look_revisits(model.cover)} of them look steps " \
+           f"({looks} look steps in all)"
 
 
 def robot_table(model: FleetModel) -> Table:
