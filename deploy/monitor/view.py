@@ -18,16 +18,13 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from deploy.monitor.figures import mission_figures
+from deploy.monitor.figures import mission_figures, robot_hex
 from deploy.monitor.model import FleetModel, RobotView
 from deploy.monitor.plain import format_event
 from deploy.monitor.redundancy import look_revisits
 from deploy.monitor.types import MonitorEvent
 from deploy.monitor.verdict import verdict_word
 
-PALETTE = ("red", "green", "blue", "magenta", "cyan", "yellow", "bright_red", "bright_green",
-           "bright_blue", "bright_magenta", "bright_cyan", "orange3", "purple", "turquoise2",
-           "gold3", "deep_pink3")
 ARROWS = "▲▶▼◀"
 _EVENT_STYLE = {"died": "bold red", "detected_dead": "red", "takeover": "yellow",
                 "conflict_lost": "magenta", "mission_complete": "bold green",
@@ -36,7 +33,7 @@ _EVENT_STYLE = {"died": "bold red", "detected_dead": "red", "takeover": "yellow"
 
 
 def colour(robot: int) -> str:
-    return PALETTE[robot % len(PALETTE)]
+    return robot_hex(robot)
 
 
 @dataclass(frozen=True)
