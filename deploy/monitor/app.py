@@ -16,6 +16,7 @@ from bus.bridge import Bus
 from bus.config import ConnectionSettings, open_session_async
 from bus.messages import SCHEMA_VERSION
 from deploy.errors import FleetError
+from deploy.monitor.layout import EventLog
 from deploy.monitor.live import LiveFeed, poll
 from deploy.monitor.model import FleetModel
 from deploy.monitor.plain import PlainPrinter
@@ -77,12 +78,15 @@ class RichScreen:
         self._live = Live(console=self.console, auto_refresh=False, transient=True,
                           screen=False)
         self._live.start()
+        self.log = EventLog()
 
     def _frame(self, model: FleetModel, stats: FeedStats) -> RenderableType:
-        return render(model, stats, width=self.console.width, height=self.console.height)
+        # the terminal's size at each frame: a resized window gets a new layout
+        return render(model, stats, width=self.console.width, height=self.console.height,
+                      log=self.log)
 
     def events(self, events: list[MonitorEvent]) -> None:
-        return None  # the event log is part of each frame
+        self.log.add(events)  # each frame shows the latest, important ones pinned
 
     def refresh(self, model: FleetModel, stats: FeedStats) -> None:
         self._live.update(self._frame(model, stats), refresh=True)
