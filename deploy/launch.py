@@ -292,7 +292,7 @@ class Launcher:
                 await self.query_world(bus)
             if view.lost.startswith("body failed"):
                 self.tracker.log.append(f"robot {child.robot}'s agent stopped (exit code "
-                                        f"{code}): its body was stopped, not the agent")
+                                        f"{code}) because its body was failed")
                 continue
             known = bool(view.lost)  # e.g. we killed it
             self.tracker.lose(child.robot, why)
