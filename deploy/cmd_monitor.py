@@ -41,16 +41,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def follow_run_dir(args: argparse.Namespace,
                     settings: ConnectionSettings) -> ConnectionSettings:
-    """Point the monitor at a fleet started by `mstc up` or `mstc tree-fleet` (its mission
-    name is unique per run). An explicit --mission (or MSTC_MISSION) wins; without a run
-    directory the settings stay."""
+    """Point a viewer at a fleet started by `mstc up` or `mstc tree-fleet` (its mission
+    name is unique per run): --run-dir, else the live run, else the latest. An explicit
+    --mission (or MSTC_MISSION) wins; without a run directory the settings stay."""
     from deploy.errors import FleetError
     from deploy.fleet import RunDir, latest_run_dir
 
     if args.run_dir is None and _explicit_mission(args):
         return settings
     try:
-        run_dir = args.run_dir if args.run_dir is not None else latest_run_dir()
+        if args.run_dir is not None:
+            run_dir = args.run_dir
+        else:  # the run whose fleet is running, else the latest
+            from deploy.monitor.discovery import live_runs
+
+            live = [r.run_dir for r in live_runs() if r.run_dir is not None]
+            run_dir = live[0] if live else latest_run_dir()
         info = RunDir(run_dir).read_fleet()
     except FleetError as error:
         if args.run_dir is not None:
@@ -126,7 +132,8 @@ class MissionChooser:
                         f"no live mission within {limit:g} s: no fleet running under "
                         f"runs/ and no robots on the router at "
                         f"{', '.join(self.base.endpoints)} (start one with mstc up, or "
-                        f"name it with --run-dir or --mission)")
+                        f"name it with --run-dir or --mission; a router that enforces "
+                        f"credentials also needs --credentials)")
                 await asyncio.sleep(POLL_S)
             return None
         finally:

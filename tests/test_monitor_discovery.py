@@ -135,3 +135,21 @@ def test_with_no_live_run_and_no_router_the_monitor_says_what_it_waits_for_and_g
                         f"ended); waiting up to 2 s for a fleet to start (mstc up) or for "
                         f"robots on the router at tcp/127.0.0.1:{free_port}")
     assert lines[-1].startswith("mstc monitor: error: no live mission within 2 s"), lines
+
+
+def test_viewers_follow_the_running_fleet_before_a_newer_finished_one(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """mstc foxglove and ros-bridge share the follower: a run whose launcher runs wins over
+    a later run directory that has ended."""
+    import argparse
+
+    from bus.config import DEFAULT_MISSION, ConnectionSettings
+    from deploy.cmd_monitor import follow_run_dir
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("MSTC_MISSION", raising=False)
+    monkeypatch.delenv("MSTC_CREDENTIALS", raising=False)
+    _run_dir(Path("runs"), "a", "running", 100.0, live=True)
+    _run_dir(Path("runs"), "b", "ended", 200.0, live=False)
+    args = argparse.Namespace(mission=DEFAULT_MISSION, run_dir=None)
+    assert follow_run_dir(args, ConnectionSettings()).mission == "running"
