@@ -26,9 +26,10 @@ def _four_robots_one_killed() -> tuple[FleetModel, EventLog]:
     return model, log
 
 
-def _screen(model: FleetModel, log: EventLog, width: int, height: int) -> list[str]:
+def _screen(model: FleetModel, log: EventLog, width: int, height: int,
+            stats: FeedStats | None = None) -> list[str]:
     console = Console(record=True, width=width, height=height, file=io.StringIO())
-    console.print(render(model, FeedStats(), width=width, height=height, log=log))
+    console.print(render(model, stats or FeedStats(), width=width, height=height, log=log))
     return console.export_text().splitlines()
 
 
@@ -61,6 +62,12 @@ def test_at_80_by_24_the_figures_go_below_a_full_width_map() -> None:
     assert lines[0].startswith("╭") and lines[0].endswith("╮") and len(lines[0]) == 80
     assert any("coverage" in line and "moves" in line for line in lines)  # two to a row
     assert any("mission complete" in line for line in lines)
+    # long values are cut, never the labels
+    many_drops = FeedStats(drops={f"kind{i}.decode": i for i in range(1, 9)})
+    text = "\n".join(_screen(model, log, 80, 24, many_drops))
+    for label in ("coverage ", "moves ", "sim time ", "robots ", "redundancy ", "claims ",
+                  "messages ", "drops ", "queue ", "mission ", "source "):
+        assert f"{label}" in text, label
 
 
 def test_the_log_takes_the_rows_the_rest_leaves() -> None:

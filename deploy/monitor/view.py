@@ -265,9 +265,10 @@ def _one_up(rows: list[FigureRow]) -> Table:
 
 def _two_up(rows: list[FigureRow]) -> Table:
     """Two figures to a row: the narrow layout's figures below the map."""
-    table = Table.grid(padding=(0, 1))
-    for _ in range(2):
-        table.add_column(style="bold", no_wrap=True)
+    table = Table.grid(padding=(0, 1), expand=True)
+    widest = max((len(name) for name, _, _ in rows), default=1)
+    for _ in range(2):  # labels whole; long values are cut, not the labels
+        table.add_column(style="bold", no_wrap=True, min_width=widest)
         table.add_column(no_wrap=True, overflow="ellipsis", ratio=1)
     for i in range(0, len(rows), 2):
         pair = rows[i:i + 2]
