@@ -103,4 +103,4 @@ def test_narrow_tall_terminals_show_the_robot_table_too() -> None:
     assert layout(80, 60, 30, 6, (11, 60), robot_rows=5).robots_below
     assert not layout(80, 24, 30, 6, (11, 60), robot_rows=5).robots_below
     wide = layout(150, 40, 30, 6, (11, 60), robot_rows=5)
-    assert wide.beside and wide.map_width == 150 - 48 - 1 - 4
+    assert wide.beside and wide.map_width == 150 - 52 - 1 - 4

@@ -138,4 +138,4 @@ def test_the_look_steps_among_the_revisits_are_never_more_than_the_revisits() ->
         model.apply(record)
     assert model.revisits() == 1 and look_revisits(model.cover) == 1
     assert redundancy_line(model, model.revisits()) == \
-        "1 revisits, 1 of them look steps (2 look steps in all)"
+        "1 revisits: 1 by look steps (of 2)"

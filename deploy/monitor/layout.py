@@ -17,13 +17,12 @@ from dataclasses import dataclass
 
 from deploy.monitor.types import MonitorEvent
 
-SIDE_WIDTH = 48  # the figures and robots beside the map
+SIDE_WIDTH = 52  # the figures and robots beside the map
 BESIDE_MIN_WIDTH = 100  # narrower terminals get the figures below the map
 MIN_LOG_LINES = 3
 ROOMY_LOG_LINES = 8  # what a narrow layout's log keeps when the robot table joins it
 MIN_MAP_ROWS = 5
 PANEL_ROWS = 2  # a panel's top and bottom border
-LEGEND_ROWS = 1
 KEPT = 200  # events of each kind of log kept for the screen
 
 IMPORTANT_KINDS = frozenset({
@@ -42,20 +41,23 @@ class Layout:
 
 
 def layout(width: int, height: int, side_rows: int, figure_rows: int,
-           map_shape: tuple[int, int] | None, robot_rows: int = 0) -> Layout:
+           map_shape: tuple[int, int] | None, robot_rows: int = 0,
+           legend_width: int = 0) -> Layout:
     """The layout for a ``width`` x ``height`` console. ``side_rows``: the rows the figures
     and robot table take beside the map; ``figure_rows``: the rows of the figures below it
     (two to a row); ``map_shape``: the rows and columns the map would like (None: unknown);
-    ``robot_rows``: the robot table's rows, shown below the figures if the log keeps enough."""
+    ``robot_rows``: the robot table's rows, shown below the figures if the log keeps enough;
+    ``legend_width``: the map legend's length (two rows where the map is narrower)."""
     # beside the map only if the figures' column leaves the log its rows
     beside = width >= BESIDE_MIN_WIDTH and height >= side_rows + PANEL_ROWS + MIN_LOG_LINES + 1
     map_width = max(10, width - (SIDE_WIDTH + 1 if beside else 0) - 4)
-    chrome = PANEL_ROWS * 2 + LEGEND_ROWS  # map panel and log panel borders, the legend
+    legend = 1 if legend_width <= map_width else 2
+    chrome = PANEL_ROWS * 2 + legend  # map panel and log panel borders, the legend
     below = 0 if beside else figure_rows + PANEL_ROWS
     # the log keeps a fifth of a tall terminal; the map has the rest
     room = max(MIN_MAP_ROWS, height - chrome - below - max(MIN_LOG_LINES, height // 5))
     wanted = room if map_shape is None else min(room, max(MIN_MAP_ROWS, map_shape[0]))
-    top = max(wanted + LEGEND_ROWS, side_rows - PANEL_ROWS) if beside else wanted + LEGEND_ROWS
+    top = max(wanted + legend, side_rows - PANEL_ROWS) if beside else wanted + legend
     log_lines = max(MIN_LOG_LINES, height - top - PANEL_ROWS * 2 - below - 1)
     table = robot_rows + PANEL_ROWS
     if not beside and robot_rows and log_lines - table >= ROOMY_LOG_LINES:

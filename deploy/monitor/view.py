@@ -36,8 +36,7 @@ _EVENT_STYLE = {"died": "bold red", "detected_dead": "red", "takeover": "yellow"
 LEGEND = Text.assemble(
     ("█", "bold"), "covered ", ("▒", "bold"), "partly ", ("·", "grey50"), "uncovered ",
     ("?", "bold magenta"), "claimed ", ("#", "grey37"), "blocked ", ("▲", "bold"),
-    "robot ", ("✖", "bold red"), "dead ", "○left ", ("─", "dim"), "tree edge", style="dim",
-    no_wrap=True, overflow="ellipsis")
+    "robot ", ("✖", "bold red"), "dead ", "○left ", ("─", "dim"), "tree edge", style="dim")
 
 
 def colour(robot: int) -> str:
@@ -72,11 +71,12 @@ def render(model: FleetModel, stats: FeedStats, *, width: int = 120, height: int
     drawn = None if shape is None else \
         ((shape[0] + 1) // 2 * 2 - 1, (shape[1] + 1) // 2 * 2 - 1)
     figure_lines, robot_lines = math.ceil(len(rows) / 2), len(model.robots) + 1
-    lay = layout(width, height, side_rows, figure_lines, drawn, robot_lines)
+    legend = len(LEGEND.plain)
+    lay = layout(width, height, side_rows, figure_lines, drawn, robot_lines, legend)
     drawing = render_map(model, lay.map_width, lay.map_rows)
     # a map drawn every s-th cell may take fewer rows than it was given: the log gets them
     lay = layout(width, height, side_rows, figure_lines,
-                 (len(drawing.plain.splitlines()), lay.map_width), robot_lines)
+                 (len(drawing.plain.splitlines()), lay.map_width), robot_lines, legend)
     map_panel = Panel(Group(drawing, LEGEND), title=_title(model))
     events = Panel(event_log(*log.lines(lay.log_lines)), title="events")
     if not lay.beside:
@@ -256,8 +256,8 @@ def figure_rows(model: FleetModel, stats: FeedStats) -> list[FigureRow]:
 
 def _one_up(rows: list[FigureRow]) -> Table:
     table = Table.grid(padding=(0, 1))
-    table.add_column(style="bold")
-    table.add_column()
+    table.add_column(style="bold", no_wrap=True)
+    table.add_column(no_wrap=True, overflow="ellipsis")  # one row each: the layout counts them
     for label, value, style in rows:
         table.add_row(label, value, style=style)
     return table
@@ -285,8 +285,7 @@ def redundancy_line(model: FleetModel, revisits: int) -> str:
     looks = sum(v.look_steps for v in model.robots.values())
     if not looks:
         return f"{revisits} revisits"
-    return f"{revisits} revisits, {look_revisits(model.cover)} of them look steps " \
-           f"({looks} look steps in all)"
+    return f"{revisits} revisits: {look_revisits(model.cover)} by look steps (of {looks})"
 
 
 def robot_table(model: FleetModel) -> Table:
