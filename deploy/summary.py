@@ -45,6 +45,7 @@ class SupervisedRobot:
     lost: str = ""  # why the robot is lost; empty while it is not
     completed: bool = False  # the robot knows the mission complete (or, ORMSTC, its part)
     finished: bool = False  # its own work is done (its section), until it takes over more
+    taking_over: bool = False  # it took over a dead robot's section: at work until the end
 
 
 @dataclass(frozen=True)
@@ -192,12 +193,13 @@ class MissionTracker:
         if event.kind == "completed":
             view.completed = view.finished = True
         elif event.kind == "section_complete":
-            view.finished = True
+            # a takeover decided in the same step may be heard first
+            view.finished = not view.taking_over
         elif event.kind == "completion_withdrawn":
             view.completed = view.finished = False
         elif event.kind == "takeover_started" and (pair := (event.robot, event.subject)) \
                 not in self.takeovers:
-            view.finished = False  # at work again, on the dead robot's section
+            view.finished, view.taking_over = False, True  # at work on the dead's section
             self.takeovers.add(pair)
             self.log.append(f"robot {event.robot} takes over robot {event.subject}'s section")
         elif event.kind == "replanned" and (event.robot, event.detail) not in self.replans:

@@ -45,6 +45,8 @@ def test_a_robot_whose_section_is_covered_is_not_shown_covering_and_counts_as_do
     # taking over a dead robot's section is work again
     tracker.on_event(RobotEvent(1, 1, "takeover_started", 2))
     assert tracker.done == 0 and tracker.shown_state(tracker.views[1]) == "covering"
+    tracker.on_event(RobotEvent(1, 1, "section_complete", None, "13 moves"))  # heard late
+    assert tracker.done == 0
     tracker.on_event(RobotEvent(0, 1, "completed", None, "done"))
     assert tracker.shown_state(tracker.views[0]) == "done" and tracker.done == 1
 
