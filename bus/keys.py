@@ -141,6 +141,12 @@ def all_alive(mission: str) -> str:
     return wildcard("alive", mission)
 
 
+def alive_in_every_mission() -> str:
+    """Every robot's liveliness token on a router, whatever its mission (a monitor finding
+    the missions that are live)."""
+    return f"{ROOT}/*/{_family('alive').path.format(robot='*', incarnation='*')}"
+
+
 def replan(mission: str, robot: int) -> str:
     """A survivor's ReplanReport (offline agents re-balancing after a death)."""
     return build("replan", mission, robot)

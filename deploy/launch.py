@@ -173,13 +173,13 @@ class Launcher:
             self.wake.set()
 
     def _on_death(self, _key: str, notice: DeathNotice) -> None:
-        self.tracker.on_death(notice)
-        killed_at = self.killed_at.pop(notice.robot, None)
-        if killed_at is not None and notice.reason != "leaving":
-            by = "?" if notice.detected_by is None else notice.detected_by
-            self.tracker.log.append(
-                f"robot {notice.robot} declared dead by robot {by} ({notice.reason}) "
-                f"{time.monotonic() - killed_at:.2f} s after it was failed")
+        # every death is told, not only those of our own kill orders (`mstc kill` from
+        # another terminal, a crash); with the delay when we failed it ourselves
+        killed_at = self.killed_at.get(notice.robot)
+        after = "" if killed_at is None else \
+            f" {time.monotonic() - killed_at:.2f} s after it was failed"
+        if self.tracker.on_death(notice, after):
+            self.killed_at.pop(notice.robot, None)
 
     def _on_verdict(self, _key: str, status: MissionStatus) -> None:
         if status.state == "failed" and not self.failed_verdict:
@@ -216,7 +216,7 @@ class Launcher:
         initial = t.covered
         while True:
             now = time.monotonic()
-            outcome = self._check_children()
+            outcome = await self._check_children(bus)
             if self.stop.is_set():
                 sig = self.supervisor.stop_signal or signal.SIGINT
                 return Outcome(128 + sig, f"stopped by {signal.Signals(sig).name}")
@@ -269,7 +269,7 @@ class Launcher:
                 f"{self._uncovered()}; robot states {states}; "
                 f"agent logs in {self.run_dir.logs}")
 
-    def _check_children(self) -> Outcome | None:
+    async def _check_children(self, bus: Bus) -> Outcome | None:
         for child in self.children():
             code = child.returncode
             if code is None or child.name in self._reported or child.expected_exit:
@@ -285,7 +285,16 @@ class Launcher:
             why = (f"agent process killed by signal {-code}" if code < 0 else
                    "fenced: declared dead by its peers" if code == AGENT_FENCED else
                    f"agent exited with code {code}")
-            known = bool(self.tracker.views[child.robot].lost)  # e.g. we failed its body
+            view = self.tracker.views[child.robot]
+            if code > 0 and code != AGENT_FENCED and not view.lost:
+                # an agent whose body an operator failed (`mstc kill --hw`) ends this way
+                # too: ask simhw before calling it a crash
+                await self.query_world(bus)
+            if view.lost.startswith("body failed"):
+                self.tracker.log.append(f"robot {child.robot}'s agent stopped (exit code "
+                                        f"{code}) because its body was failed")
+                continue
+            known = bool(view.lost)  # e.g. we killed it
             self.tracker.lose(child.robot, why)
             if code > 0 and code != AGENT_FENCED and not known:
                 self.view.event(f"last lines of {child.log}:\n{child.tail(8)}")

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from deploy.errors import UsageError
 from deploy.figure_path import save_figure
+from deploy.monitor.figures import robot_hex
 from planner.types import OccupancyGrid, Plan
 
 
@@ -25,9 +26,8 @@ def plot_plan(plan: Plan, grid: OccupancyGrid, out: Path) -> None:
         for (r1, c1), (r2, c2) in plan.tree.edges():
             ax.plot([2 * c1 + 0.5, 2 * c2 + 0.5], [2 * r1 + 0.5, 2 * r2 + 0.5],
                     color="0.55", linewidth=1.0, zorder=1)
-    colours = plt.get_cmap("tab20")
     for robot in plan.robots:
-        colour = colours(robot.robot % 20)
+        colour = robot_hex(robot.robot)
         rows = [p[0] for p in robot.path]
         cols = [p[1] for p in robot.path]
         ax.plot(cols, rows, color=colour, linewidth=1.6, zorder=2,

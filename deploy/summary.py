@@ -43,7 +43,9 @@ class SupervisedRobot:
     state: str = "starting"
     moves: int = 0
     lost: str = ""  # why the robot is lost; empty while it is not
-    completed: bool = False
+    completed: bool = False  # the robot knows the mission complete (or, ORMSTC, its part)
+    finished: bool = False  # its own work is done (its section), until it takes over more
+    taking_over: bool = False  # it took over a dead robot's section: at work until the end
 
 
 @dataclass(frozen=True)
@@ -96,6 +98,7 @@ class MissionTracker:
     replans: set[tuple[int, str]] = field(default_factory=set)  # (robot, what it said)
     heard: set[int] = field(default_factory=set)  # robots whose status was received
     agreed: set[str] = field(default_factory=set)  # agreement notes already logged
+    declared: set[tuple[int, int]] = field(default_factory=set)  # lives declared dead
     log: list[str] = field(default_factory=list)
     model: FleetModel = field(init=False)  # the figures' source, as in mstc monitor / report
 
@@ -155,7 +158,9 @@ class MissionTracker:
                 view = self.views[truth.robot]
                 view.moves = max(0, truth.covered - 1)
                 if truth.failed and not view.lost:
-                    self.lose(truth.robot, "body failed in simhw")
+                    # only an operator's admin command fails a body: `mstc kill --hw`
+                    self.lose(truth.robot, "body failed in simhw by an operator "
+                                           "(mstc kill --hw)")
         grew = self.covered > before
         if grew:
             self.last_progress = now
@@ -186,11 +191,15 @@ class MissionTracker:
             return
         view = self.views[event.robot]
         if event.kind == "completed":
-            view.completed = True
+            view.completed = view.finished = True
+        elif event.kind == "section_complete":
+            # a takeover decided in the same step may be heard first
+            view.finished = not view.taking_over
         elif event.kind == "completion_withdrawn":
-            view.completed = False
+            view.completed = view.finished = False
         elif event.kind == "takeover_started" and (pair := (event.robot, event.subject)) \
                 not in self.takeovers:
+            view.finished, view.taking_over = False, True  # at work on the dead's section
             self.takeovers.add(pair)
             self.log.append(f"robot {event.robot} takes over robot {event.subject}'s section")
         elif event.kind == "replanned" and (event.robot, event.detail) not in self.replans:
@@ -199,16 +208,46 @@ class MissionTracker:
         if event.kind in ("fenced", "stopped", "leaving"):
             view.state = event.kind
 
-    def on_death(self, notice: DeathNotice) -> None:
+    def on_death(self, notice: DeathNotice, after: str = "") -> bool:
+        """A death notice; True the first time this life is declared dead (several robots
+        may declare the same death). Every such death gets a log line, also when the robot
+        was known lost before (killed by us or by `mstc kill`, its process gone); ``after``
+        ends that line (how long after we failed it)."""
         if not 0 <= notice.robot < self.robots:
-            return
+            return False
         if notice.reason == "leaving":
             # A robot announcing its own clean exit (after completion or SIGTERM): not lost.
             if not self.views[notice.robot].lost:
                 self.views[notice.robot].state = "left"
-            return
+            return False
+        life = (notice.robot, notice.incarnation)
+        if life in self.declared:
+            return False
+        self.declared.add(life)
         by = "an observer" if notice.detected_by is None else f"robot {notice.detected_by}"
-        self.lose(notice.robot, f"declared dead by {by} ({notice.reason})")
+        declared = f"declared dead by {by} ({notice.reason})"
+        if self.views[notice.robot].lost:
+            self.log.append(f"robot {notice.robot} {declared}{after}")
+        else:
+            self.lose(notice.robot, declared + after)
+        return True
+
+    def shown_state(self, view: SupervisedRobot) -> str:
+        """The state a progress view shows: a robot whose section is covered is not
+        "covering" any more, though it says so until the whole mission is."""
+        if view.lost:
+            return "lost"
+        if view.completed:
+            return "done"
+        if view.finished and view.state in ("covering", "planned", "agreed"):
+            return "section done"
+        return view.state
+
+    @property
+    def done(self) -> int:
+        """Robots whose own work is done (their section covered, or the mission known
+        complete), counted as they finish rather than at the end."""
+        return sum(v.finished and not v.lost for v in self.views)
 
     @property
     def announced(self) -> int:

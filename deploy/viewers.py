@@ -35,9 +35,10 @@ def add_watch_arguments(parser: argparse.ArgumentParser, verb: str) -> None:
                         help="re-query the world and the robots' state every S seconds "
                              "(default %(default)s)")
     parser.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
-                        help=f"{verb} the fleet of this `mstc up` run directory (default: the "
-                             "latest under runs/, when neither --mission nor MSTC_MISSION "
-                             "is given)")
+                        help=f"{verb} the fleet of this `mstc up` run directory (default, "
+                             "when neither --mission nor MSTC_MISSION is given: the run "
+                             "under runs/ whose fleet is running; mstc monitor waits for "
+                             "one, or asks the router which missions are live)")
 
 
 def stop_on_signals(stop: asyncio.Event, connected: Callable[[], bool]) -> None:

@@ -385,3 +385,6 @@ async def test_mstc_kill_hw_fails_a_running_robot_mid_section(bus: Bus, router: 
     finally:
         stop_processes([proc])
     check_body_failure(heard, case, grid, victim, run_dir, code, output)
+    # told as what happened, not as a crash with a log dump
+    assert f"robot {victim} lost: body failed in simhw by an operator" in output, output
+    assert "agent exited with code" not in output and "last lines of" not in output, output

@@ -239,12 +239,12 @@ def test_world_state_is_the_authority_for_moves_and_failed_bodies() -> None:
     assert tracker.on_world(state, now=1.0)
     assert tracker.covered == 8
     assert [v.moves for v in tracker.views] == [5, 3]
-    assert tracker.views[1].lost == "body failed in simhw"
+    assert tracker.views[1].lost == "body failed in simhw by an operator (mstc kill --hw)"
     summary = summarize(tracker, mission="m", world="open", algo="opt", wall_seconds=1.0,
                         planned_makespan=5, outcome="test")
     assert summary.makespan_moves == 5 and summary.total_moves == 8
     assert summary.revisited == 1 and not summary.complete
-    assert summary.robots_lost == ((1, "body failed in simhw"),)
+    assert summary.robots_lost == ((1, "body failed in simhw by an operator (mstc kill --hw)"),)
     assert "50.0 %" in format_summary(summary)
 
 

@@ -122,3 +122,20 @@ def test_look_step_key_and_codec() -> None:
     assert decode(encode(msg), LookStep) == msg
     parsed = keys.parse(keys.look_steps("m1", 3))
     assert parsed is not None and (parsed.kind, parsed.robot) == ("look", 3)
+
+
+def test_the_look_steps_among_the_revisits_are_never_more_than_the_revisits() -> None:
+    """A look into a sub-cell not entered before is a first visit: of the walk below's one
+    revisit (the step back to (0, 1)) one is a look step, though two look steps were made
+    (the live view once said "1 revisits (2 of them look steps)")."""
+    from deploy.monitor.redundancy import look_revisits
+    from deploy.monitor.view import redundancy_line
+
+    mission = run_mission(open_room(2, 4), {0: [(0, 0), (0, 1), (1, 1), (0, 1), (0, 2)]},
+                          algo="ormstc")
+    model = FleetModel()
+    for record in [*mission.records, *look_records(0, [(1, 1), (0, 1)])]:
+        model.apply(record)
+    assert model.revisits() == 1 and look_revisits(model.cover) == 1
+    assert redundancy_line(model, model.revisits()) == \
+        "1 revisits: 1 by look steps (of 2)"

@@ -164,3 +164,16 @@ def test_balanced_walk_outs_may_cross_other_regions_and_nothing_else() -> None:
     walks[still] = [*walks[still], walks[still][-2]]  # a step back over its own region
     report = report_of(run_mission(free, walks, algo="balanced").records)
     assert statuses(report)[name] == "failed"
+
+
+def test_the_text_report_says_how_many_revisited_sub_cells_it_leaves_out() -> None:
+    # both robots snake over the whole room: every one of its 32 sub-cells is revisited
+    room = open_room()
+    walk = snake(range(4), range(8))
+    report = report_of(run_mission(room, {0: walk, 1: walk[::-1]}).records)
+    assert len(report.revisited_cells) == 32
+    text = format_report(report)
+    assert text.count("  revisited ") == 10
+    assert "  ... and 22 more revisited sub-cells (all of them in --json)" in text
+    few = report_of(run_mission(room, two_robot_walks()).records)
+    assert "more revisited" not in format_report(few)

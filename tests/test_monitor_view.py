@@ -15,12 +15,12 @@ from deploy.monitor.app import PlainScreen, Watcher, replay
 from deploy.monitor.model import FleetModel
 from deploy.monitor.plain import PlainPrinter
 from deploy.monitor.types import Header, Record, Recording
-from deploy.monitor.view import FeedStats, render, render_map
+from deploy.monitor.view import FeedStats, colour, render, render_map
 
 
 def screen_text(model: FleetModel, stats: FeedStats | None = None, width: int = 150) -> str:
     console = Console(record=True, width=width, height=60, file=io.StringIO())
-    console.print(render(model, stats or FeedStats(), width=width, height=60, log_lines=20))
+    console.print(render(model, stats or FeedStats(), width=width, height=60))
     return console.export_text()
 
 
@@ -69,9 +69,9 @@ def test_map_draws_tree_edges_and_owners() -> None:
     for span in text.spans:
         for i in range(span.start, span.end):
             style[i] = str(span.style)
-    # Row 0 of cells is fully covered: robot 0 (red) left, robot 1 (green) right.
+    # Row 0 of cells is fully covered: robot 0 left, robot 1 right, each in its colour.
     assert rows[0][::2] == "████"
-    assert [style[i] for i in (0, 2, 4, 6)] == ["red", "red", "green", "green"]
+    assert [style[i] for i in (0, 2, 4, 6)] == [colour(0), colour(0), colour(1), colour(1)]
 
 
 def test_big_maps_are_drawn_every_sth_cell() -> None:
@@ -108,7 +108,7 @@ def test_claims_and_conflicts_on_the_map() -> None:
     row = text.plain.splitlines()[0]
     assert row[2] == "?" and row[4] == "?"  # cells (0, 1) and (0, 2)
     styles = {i: str(span.style) for span in text.spans for i in range(span.start, span.end)}
-    assert styles[2] == "red" and styles[4] == "bold magenta"
+    assert styles[2] == colour(0) and styles[4] == "bold magenta"
 
 
 def test_replay_keeps_the_recorded_pace_scaled_by_speed() -> None:

@@ -4,7 +4,6 @@ both compared with the fixture's brute-force truth (visits, first visitors, walk
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -21,7 +20,6 @@ from deploy.robotics.scene import (
     Scene,
     heading_yaw,
     log_lines,
-    robot_colour,
     scene,
     sub_cell_centre,
 )
@@ -151,8 +149,3 @@ def test_ros_markers_and_log_round_trip() -> None:
     assert (log.msg, log.level, log.name) == (line.text, 20, f"mstc.{line.name}")
 
 
-def test_robot_colours_differ_for_neighbours_and_do_not_repeat() -> None:
-    colours = [robot_colour(r) for r in range(64)]
-    assert len(set(colours)) == 64
-    for a, b in itertools.pairwise(colours):
-        assert max(abs(x - y) for x, y in zip(a, b, strict=True)) > 0.25

@@ -16,11 +16,13 @@ from bus.bridge import Bus
 from bus.config import ConnectionSettings, open_session_async
 from bus.messages import SCHEMA_VERSION
 from deploy.errors import FleetError
+from deploy.monitor.layout import EventLog
 from deploy.monitor.live import LiveFeed, poll
 from deploy.monitor.model import FleetModel
 from deploy.monitor.plain import PlainPrinter
 from deploy.monitor.recorder import Recorder, Recorders, RecordWriter
-from deploy.monitor.types import Header, MonitorEvent, Record, Recording
+from deploy.monitor.types import Header, MonitorEvent, Record, Recording, TokenChange
+from deploy.monitor.verdict import Verdict, mission_verdict
 from deploy.monitor.view import FeedStats, render
 
 T = TypeVar("T")
@@ -76,12 +78,15 @@ class RichScreen:
         self._live = Live(console=self.console, auto_refresh=False, transient=True,
                           screen=False)
         self._live.start()
+        self.log = EventLog()
 
     def _frame(self, model: FleetModel, stats: FeedStats) -> RenderableType:
-        return render(model, stats, width=self.console.width, height=self.console.height)
+        # the terminal's size at each frame: a resized window gets a new layout
+        return render(model, stats, width=self.console.width, height=self.console.height,
+                      log=self.log)
 
     def events(self, events: list[MonitorEvent]) -> None:
-        return None  # the event log is part of each frame
+        self.log.add(events)  # each frame shows the latest, important ones pinned
 
     def refresh(self, model: FleetModel, stats: FeedStats) -> None:
         self._live.update(self._frame(model, stats), refresh=True)
@@ -116,20 +121,49 @@ class Watcher:
         self.screen = screen
         self.recorder = recorder
         self.connected = False
+        self.verdict: Verdict | None = None
+        self.mission = ""  # the mission watched, for a monitor that follows new runs
+        self.new_run = False  # robots of a judged mission came back: the mission runs again
 
     def feed(self, records: Iterable[Record]) -> None:
+        fed = False
         for record in records:
+            fed = True
+            if self.verdict is not None and self._returned(record):
+                self.new_run = True
             events = self.model.apply(record)
             if self.recorder is not None:
                 self.recorder.write(record)
             if events:
                 self.screen.events(events)
+        if fed and (self.verdict is None or not self.verdict.published):
+            self._judge()
+
+    def _returned(self, record: Record) -> bool:
+        """A robot's token back after it had vanished, once the mission had its verdict: a
+        new run of the same mission (its robots start again from life 1)."""
+        change = record.msg
+        if not isinstance(change, TokenChange) or not change.present:
+            return False
+        view = self.model.robots.get(change.robot)
+        return view is not None and view.token is False
+
+    def _judge(self) -> None:
+        """Take the mission's verdict once it has one; one read off the robots' messages
+        (ORMSTC and tree missions publish none) is told as an event of its own, and judged
+        again as they go on (a robot thought dead may come back)."""
+        before, self.verdict = self.verdict, mission_verdict(self.model)
+        if self.verdict is not None and not self.verdict.published and \
+                (before is None or before.state != self.verdict.state):
+            state = self.verdict.state
+            self.screen.events([self.model.note(
+                self.model.t, "mission_complete" if state == "complete" else "mission_failed",
+                f"mission {state}: {self.verdict.message}")])
 
     def settled(self) -> bool:
         """The mission has a final verdict and every robot is done, dead or gone."""
-        model = self.model
-        return model.mission is not None and model.mission.state != "running" and all(
-            v.done or v.dead or v.left for v in model.robots.values())
+        return self.verdict is not None and all(
+            v.done or v.dead or v.left for v in self.model.robots.values())
 
 
 async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,

@@ -107,6 +107,11 @@ class FleetModel:
         self.event_count += 1
         self._new.append(event)
 
+    def note(self, t: float, kind: EventKind, text: str) -> MonitorEvent:
+        """An event of the mission found outside the records (a verdict read off them)."""
+        self._emit(t, kind, None, text)
+        return self.events[-1]
+
     def _once(self, *identity: Any) -> bool:
         """True the first time ``identity`` is seen (re-announcements are not news)."""
         if identity in self._seen_events:
@@ -119,8 +124,8 @@ class FleetModel:
 
     def _heartbeat(self, record: Record, hb: Heartbeat) -> None:
         view = self.roster.valid(record, hb.robot, "heartbeat")
-        if view is None or _fenced(view, hb.incarnation):
-            return
+        if view is None or (view.death is not None and hb.incarnation <= view.death.incarnation):
+            return  # a fenced life
         view.incarnation = max(view.incarnation, hb.incarnation)
         view.last_heartbeat = record.t
         if not (view.done or view.left or view.ended):
@@ -378,10 +383,6 @@ class FleetModel:
                          for v in sorted(self.robots.values(), key=lambda v: v.robot)),
             mission=self.mission.state if self.mission else "",
             owners=frozenset(self.cover.owner.items()), edges=frozenset(self.edges.items()))
-
-
-def _fenced(view: RobotView, incarnation: int) -> bool:
-    return view.death is not None and incarnation <= view.death.incarnation
 
 
 _HANDLERS: dict[type[Any], Any] = {

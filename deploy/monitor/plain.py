@@ -9,6 +9,7 @@ from typing import TextIO
 from deploy.monitor.figures import mission_figures
 from deploy.monitor.model import FleetModel
 from deploy.monitor.types import MonitorEvent
+from deploy.monitor.verdict import verdict_word
 
 
 def format_event(event: MonitorEvent) -> str:
@@ -25,7 +26,7 @@ def status_line(model: FleetModel, drops: int = 0) -> str:
         f"{covered} sub-cells (map unknown)"
     known, alive, dead, done = model.counts()
     numbers = mission_figures(model)
-    mission = model.mission.state if model.mission else "unknown"
+    mission = verdict_word(model)
     tree = model.tree.line()
     if tree:
         return f"{tree}, robots {known} alive {alive} dead {dead}, mission {mission}"

@@ -63,3 +63,12 @@ def account_entries(cover: CoverageMap, starts: Mapping[int, SubCell]) -> EntryA
             twice.append((cell, tuple(walkers)))
     look_steps = sum(n for per_robot in cover.looks.values() for n in per_robot.values())
     return EntryAccount(look_steps, tuple(closings), tuple(twice))
+
+
+def look_revisits(cover: CoverageMap) -> int:
+    """How many of the revisits (visits beyond a sub-cell's first) were look steps: a look
+    step into a sub-cell not entered before is a first visit, not a revisit, so this part is
+    never bigger than the whole."""
+    return sum(min(sum(per_robot.values()), max(cover.visits.get(cell, 0) - 1, 0))
+               for cell, per_robot in cover.looks.items())
+

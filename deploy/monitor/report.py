@@ -18,6 +18,8 @@ from deploy.monitor.types import Record, Recording
 from deploy.monitor.walkouts import walk_out_redundancy
 from planner.algorithms import ALGORITHMS, Family, Revisits
 
+SHOWN_REVISITS = 10  # revisited sub-cells listed by the text report (--json lists all)
+
 REPORT_SCHEMA = "mstc-report"
 REPORT_VERSION = 1
 # Keys a robot publishes itself (its messages per move); sim/* is simhw's ground truth.
@@ -328,8 +330,11 @@ def format_report(report: MissionReport) -> str:
         looks = f", {f.look_steps} look steps" if f.look_steps else ""
         lines.append(f"  robot {f.robot}: {f.moves} moves, {f.revisits} revisits{looks}, "
                      f"{f.messages} messages ({per}/move){extra}")
-    for c, who in report.revisited_cells[:10]:
+    for c, who in report.revisited_cells[:SHOWN_REVISITS]:
         lines.append(f"  revisited {c} by robots {list(who)}")
+    if len(report.revisited_cells) > SHOWN_REVISITS:
+        lines.append(f"  ... and {len(report.revisited_cells) - SHOWN_REVISITS} more revisited "
+                     f"sub-cells (all of them in --json)")
     for d in report.deaths:
         hb = "-" if d.since_last_heartbeat is None else f"{d.since_last_heartbeat:.3f} s"
         tok = "-" if d.since_token_lost is None else f"{d.since_token_lost:.3f} s"

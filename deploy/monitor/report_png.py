@@ -8,11 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from deploy.figure_path import save_figure
+from deploy.monitor.figures import robot_hex
 from deploy.monitor.model import FleetModel
 from deploy.monitor.report import MissionReport
-
-COLOURS = ("tab:red", "tab:green", "tab:blue", "tab:purple", "tab:cyan", "tab:orange",
-           "tab:brown", "tab:pink", "tab:olive", "tab:gray")
 
 
 def write_png(model: FleetModel, report: MissionReport, path: Path) -> None:
@@ -42,9 +40,9 @@ def _draw_map(ax: object, model: FleetModel) -> None:
     for (a, b), robot in model.edges.items():
         # Cell (r, c) is sub-cells 2r..2r+1: its centre is at 2r + 0.5.
         ys, xs = [2 * a[0] + 0.5, 2 * b[0] + 0.5], [2 * a[1] + 0.5, 2 * b[1] + 0.5]
-        ax.plot(xs, ys, color=COLOURS[robot % len(COLOURS)], linewidth=3, alpha=0.35)
+        ax.plot(xs, ys, color=robot_hex(robot), linewidth=3, alpha=0.35)
     for robot, view in sorted(model.robots.items()):
-        colour = COLOURS[robot % len(COLOURS)]
+        colour = robot_hex(robot)
         if view.path:
             path = np.asarray(view.path)
             ax.plot(path[:, 1], path[:, 0], color=colour, linewidth=1.2, label=f"robot {robot}")

@@ -18,14 +18,14 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from deploy.monitor.figures import mission_figures
+from deploy.monitor.figures import mission_figures, robot_hex
+from deploy.monitor.layout import PANEL_ROWS, SIDE_WIDTH, EventLog, layout
 from deploy.monitor.model import FleetModel, RobotView
 from deploy.monitor.plain import format_event
+from deploy.monitor.redundancy import look_revisits
 from deploy.monitor.types import MonitorEvent
+from deploy.monitor.verdict import verdict_word
 
-PALETTE = ("red", "green", "blue", "magenta", "cyan", "yellow", "bright_red", "bright_green",
-           "bright_blue", "bright_magenta", "bright_cyan", "orange3", "purple", "turquoise2",
-           "gold3", "deep_pink3")
 ARROWS = "▲▶▼◀"
 _EVENT_STYLE = {"died": "bold red", "detected_dead": "red", "takeover": "yellow",
                 "conflict_lost": "magenta", "mission_complete": "bold green",
@@ -33,8 +33,14 @@ _EVENT_STYLE = {"died": "bold red", "detected_dead": "red", "takeover": "yellow"
                 "fenced": "red"}
 
 
+LEGEND = Text.assemble(
+    ("█", "bold"), "covered ", ("▒", "bold"), "partly ", ("·", "grey50"), "uncovered ",
+    ("?", "bold magenta"), "claimed ", ("#", "grey37"), "blocked ", ("▲", "bold"),
+    "robot ", ("✖", "bold red"), "dead ", "○left ", ("─", "dim"), "tree edge", style="dim")
+
+
 def colour(robot: int) -> str:
-    return PALETTE[robot % len(PALETTE)]
+    return robot_hex(robot)
 
 
 @dataclass(frozen=True)
@@ -52,17 +58,36 @@ class FeedStats:
         return sum(self.drops.values())
 
 
-def render(model: FleetModel, stats: FeedStats, *, width: int = 120,
-           height: int = 40, log_lines: int = 10) -> RenderableType:
-    """The whole screen for a console of ``width`` x ``height`` characters."""
-    side = side_panel(model, stats)
-    map_w = max(10, width - 52)
-    map_h = max(5, height - log_lines - 4)
+def render(model: FleetModel, stats: FeedStats, *, width: int = 120, height: int = 40,
+           log: EventLog | None = None) -> RenderableType:
+    """The whole screen for a console of ``width`` x ``height`` characters, laid out by its
+    size (deploy.monitor.layout); ``log``: the events kept for the screen (default: the
+    model's recent events)."""
+    log = log if log is not None else EventLog(model.events)
+    rows = figure_rows(model, stats)
+    side_rows = len(rows) + len(model.robots) + 1 + 2 * PANEL_ROWS
+    shape = _shape(model)
+    # the map drawn with its edges: 2 c - 1 characters for c cells
+    drawn = None if shape is None else \
+        ((shape[0] + 1) // 2 * 2 - 1, (shape[1] + 1) // 2 * 2 - 1)
+    figure_lines, robot_lines = math.ceil(len(rows) / 2), len(model.robots) + 1
+    legend = len(LEGEND.plain)
+    lay = layout(width, height, side_rows, figure_lines, drawn, robot_lines, legend)
+    drawing = render_map(model, lay.map_width, lay.map_rows)
+    # a map drawn every s-th cell may take fewer rows than it was given: the log gets them
+    lay = layout(width, height, side_rows, figure_lines,
+                 (len(drawing.plain.splitlines()), lay.map_width), robot_lines, legend)
+    map_panel = Panel(Group(drawing, LEGEND), title=_title(model))
+    events = Panel(event_log(*log.lines(lay.log_lines)), title="events")
+    if not lay.beside:
+        robots = [Panel(robot_table(model), title="robots")] if lay.robots_below else []
+        return Group(map_panel, Panel(_two_up(rows), title="fleet"), *robots, events)
     grid = Table.grid(padding=(0, 1))
     grid.add_column()
-    grid.add_column(width=48)
-    grid.add_row(Panel(render_map(model, map_w, map_h), title=_title(model)), side)
-    return Group(grid, Panel(event_log(list(model.events)[-log_lines:]), title="events"))
+    grid.add_column(width=SIDE_WIDTH)
+    grid.add_row(map_panel, Group(Panel(_one_up(rows), title="fleet"),
+                                  Panel(robot_table(model), title="robots")))
+    return Group(grid, events)
 
 
 def _title(model: FleetModel) -> str:
@@ -78,13 +103,22 @@ def render_map(model: FleetModel, max_w: int, max_h: int) -> Text:
     robots = _robots_by_cell(model)
     if 2 * ch - 1 <= max_h and 2 * cw - 1 <= max_w:
         return _with_edges(model, ch, cw, robots)
-    step = max(1, math.ceil(max(ch / max_h, cw / max_w)))
+    # rows and columns stepped apart, so that a wide terminal shows more of a map's width
+    row_step, col_step = max(1, math.ceil(ch / max_h)), max(1, math.ceil(cw / max_w))
+    # a terminal's characters are twice as tall as wide: draw a cell two wide if there is room
+    wide = 2 if 2 * math.ceil(cw / col_step) <= max_w else 1
     runs = _Runs()
-    for i in range(0, ch, step):
-        for j in range(0, cw, step):
-            runs.add(*_cell_glyph(model, (i, j), robots))
+    for i in range(0, ch, row_step):
+        for j in range(0, cw, col_step):
+            glyph, style = _cell_glyph(model, (i, j), robots)
+            runs.add(glyph * wide if glyph not in ARROWS else glyph + " " * (wide - 1), style)
         runs.add("\n", "")
-    return runs.text()
+    return _trimmed(runs.text())
+
+
+def _trimmed(text: Text) -> Text:
+    text.rstrip()  # no empty row below the map
+    return text
 
 
 class _Runs:
@@ -126,7 +160,7 @@ def _with_edges(model: FleetModel, ch: int, cw: int,
                 if j + 1 < cw:
                     runs.add(" ", "")
             runs.add("\n", "")
-    return runs.text()
+    return _trimmed(runs.text())
 
 
 def _edge_glyph(model: FleetModel, edge: tuple[tuple[int, int], tuple[int, int]],
@@ -185,40 +219,73 @@ def _cell_glyph(model: FleetModel, cell: tuple[int, int],
     return ("█" if len(done) == 4 else "▒"), style
 
 
-def side_panel(model: FleetModel, stats: FeedStats) -> RenderableType:
-    """Figures and one row per robot."""
-    figures = Table.grid(padding=(0, 1))
-    figures.add_column(style="bold")
-    figures.add_column()
+FigureRow = tuple[str, str, str]  # label, value, style
+
+
+def figure_rows(model: FleetModel, stats: FeedStats) -> list[FigureRow]:
+    """The fleet's figures, one (label, value, style) each."""
+    rows: list[FigureRow] = []
     coverage, total = model.coverage(), model.total()
     covered = model.covered_count()
-    figures.add_row("coverage", f"{coverage:.1f} % ({covered}/{total})"
-                    if coverage is not None else f"{covered} sub-cells (map unknown)")
+    rows.append(("coverage", f"{coverage:.1f} % ({covered}/{total})"
+                 if coverage is not None else f"{covered} sub-cells (map unknown)", ""))
     if model.tree.line():
-        figures.add_row("tree", model.tree.line())
+        rows.append(("tree", model.tree.line(), ""))
     numbers = mission_figures(model)
-    figures.add_row("moves", f"makespan {numbers.makespan_moves}, total {numbers.total_moves}")
+    rows.append(("moves", f"makespan {numbers.makespan_moves}, total {numbers.total_moves}", ""))
     scale = "" if model.time_scale is None else f" (x{model.time_scale:g})"
     covered_in = "" if numbers.coverage_sim_seconds is None else \
         f", covered in {numbers.coverage_sim_seconds:.1f} s"
-    figures.add_row("sim time", f"{model.sim_time:.1f} s{scale}{covered_in}")
+    rows.append(("sim time", f"{model.sim_time:.1f} s{scale}{covered_in}", ""))
     known, alive, dead, done = model.counts()
-    figures.add_row("robots", f"{known}: {alive} alive, {dead} dead, {done} done")
-    looks = sum(v.look_steps for v in model.robots.values())
-    figures.add_row("redundancy", f"{numbers.revisits} revisits"
-                    + (f" ({looks} of them look steps)" if looks else ""))
-    figures.add_row("claims", f"{model.claims.claims}, {len(model.claims.conflicts)} "
-                              f"conflicts settled, {len(model.claims.unsettled())} open")
-    figures.add_row("messages", f"{model.kinds.total()} ({stats.rate:.0f}/s)")
+    rows.append(("robots", f"{known}: {alive} alive, {dead} dead, {done} done", ""))
+    rows.append(("redundancy", redundancy_line(model, numbers.revisits), ""))
+    rows.append(("claims", f"{model.claims.claims}, {len(model.claims.conflicts)} "
+                           f"conflicts settled, {len(model.claims.unsettled())} open", ""))
+    rows.append(("messages", f"{model.kinds.total()} ({stats.rate:.0f}/s)", ""))
     drops = ", ".join(f"{k} {n}" for k, n in sorted(stats.drops.items())) or "0"
     invalid = sum(model.invalid.values())
-    figures.add_row("drops", drops + (f", invalid {invalid}" if invalid else ""),
-                    style="red" if stats.dropped or invalid else "")
-    figures.add_row("queue", f"{stats.queue} (max {stats.max_queue})")
-    mission = model.mission.state if model.mission else "running?"
-    figures.add_row("mission", mission, style="green" if mission == "complete" else "")
-    figures.add_row("source", stats.source)
-    return Group(Panel(figures, title="fleet"), Panel(robot_table(model), title="robots"))
+    rows.append(("drops", drops + (f", invalid {invalid}" if invalid else ""),
+                 "red" if stats.dropped or invalid else ""))
+    rows.append(("queue", f"{stats.queue} (max {stats.max_queue})", ""))
+    mission = verdict_word(model)
+    rows.append(("mission", mission, {"complete": "green", "failed": "bold red"}.get(mission, "")))
+    rows.append(("source", stats.source, ""))
+    return rows
+
+
+def _one_up(rows: list[FigureRow]) -> Table:
+    table = Table.grid(padding=(0, 1))
+    table.add_column(style="bold", no_wrap=True)
+    table.add_column(no_wrap=True, overflow="ellipsis")  # one row each: the layout counts them
+    for label, value, style in rows:
+        table.add_row(label, value, style=style)
+    return table
+
+
+def _two_up(rows: list[FigureRow]) -> Table:
+    """Two figures to a row: the narrow layout's figures below the map."""
+    table = Table.grid(padding=(0, 1), expand=True)
+    widest = max((len(name) for name, _, _ in rows), default=1)
+    for _ in range(2):  # labels whole; long values are cut, not the labels
+        table.add_column(style="bold", no_wrap=True, min_width=widest)
+        table.add_column(no_wrap=True, overflow="ellipsis", ratio=1)
+    for i in range(0, len(rows), 2):
+        pair = rows[i:i + 2]
+        cells: list[Text | str] = []
+        for label, value, style in pair:
+            cells += [label, Text(value, style=style)]
+        table.add_row(*cells)
+    return table
+
+
+def redundancy_line(model: FleetModel, revisits: int) -> str:
+    """Revisits, the part of them that were look steps, and every look step (a look into a
+    sub-cell not entered before is no revisit)."""
+    looks = sum(v.look_steps for v in model.robots.values())
+    if not looks:
+        return f"{revisits} revisits"
+    return f"{revisits} revisits: {look_revisits(model.cover)} by look steps (of {looks})"
 
 
 def robot_table(model: FleetModel) -> Table:
@@ -246,8 +313,16 @@ def _note(view: RobotView) -> str:
     return "done" if view.done else ""
 
 
-def event_log(events: list[MonitorEvent]) -> Text:
-    text = Text()
-    for i, event in enumerate(events):
-        text.append(("\n" if i else "") + format_event(event), _EVENT_STYLE.get(event.kind, ""))
+def event_log(pinned: list[MonitorEvent], others: list[MonitorEvent] | None = None) -> Text:
+    """The pinned events (deaths, takeovers, re-plans...), a dim rule, then the latest of the
+    rest; one row each (a long line is cut, not wrapped, so the layout's rows hold)."""
+    text = Text(no_wrap=True, overflow="ellipsis")
+    lines: list[tuple[MonitorEvent | None, str]] = [(e, _EVENT_STYLE.get(e.kind, ""))
+                                                    for e in pinned]
+    if pinned and others:
+        lines.append((None, "dim"))
+    lines += [(e, _EVENT_STYLE.get(e.kind, "")) for e in others or ()]
+    for i, (event, style) in enumerate(lines):
+        line = "─" * 20 + " latest " + "─" * 20 if event is None else format_event(event)
+        text.append(("\n" if i else "") + line, style)
     return text

@@ -39,16 +39,15 @@ from foxglove.messages import (
     Vector3,
 )
 
+from deploy.monitor.figures import Rgba, robot_colour
 from deploy.robotics.scene import (
     FRAME,
     SUB_CELL_M,
     GridLayers,
     LogLine,
     Point,
-    Rgba,
     RobotMark,
     Scene,
-    robot_colour,
 )
 
 GRID_FIELDS = ("owner", "visits", "free")  # byte offsets 0, 1, 2 of each cell

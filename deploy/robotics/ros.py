@@ -18,15 +18,14 @@ import numpy as np
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
+from deploy.monitor.figures import Rgba, robot_colour
 from deploy.robotics.scene import (
     FRAME,
     SUB_CELL_M,
     GridLayers,
     LogLine,
     Point,
-    Rgba,
     Scene,
-    robot_colour,
 )
 
 MAP_TYPE = "nav_msgs/msg/OccupancyGrid"

@@ -10,7 +10,6 @@ values into their message types, so both show the same thing.
 
 from __future__ import annotations
 
-import colorsys
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -26,23 +25,14 @@ from planner.types import SubCell
 
 FRAME = "map"
 SUB_CELL_M = 1.0  # the scene's unit: one sub-cell per metre (the tool size D is not on the wire)
-GOLDEN = 0.381966  # hue step: neighbouring robot ids get far-apart hues that never repeat
 
 Point = tuple[float, float]
-Rgba = tuple[float, float, float, float]
 U8Array = npt.NDArray[np.uint8]
 
 # Event kinds a viewer should show as warnings or errors (the rest are information).
 WARNING_KINDS = frozenset({"died", "detected_dead", "takeover", "conflict_lost", "withdrawn",
                            "bump", "left"})
 ERROR_KINDS = frozenset({"mission_failed", "fenced", "stopped"})
-
-
-def robot_colour(robot: int, alpha: float = 1.0) -> Rgba:
-    """A distinct colour per robot id: hues a golden angle apart, so ids 3 and 4 differ as
-    much as 3 and 30, and no two of the first hundreds coincide."""
-    r, g, b = colorsys.hsv_to_rgb((robot * GOLDEN) % 1.0, 0.85, 0.95)
-    return (r, g, b, alpha)
 
 
 @dataclass(frozen=True)
