@@ -284,3 +284,17 @@ def test_planned_tree_is_the_agents_tree_once_map_starts_kind_and_seed_are_known
     model.apply(Record(2.0, keys.state(M, 1), AgentState(
         1, 1, "covering", 0, 0, b"", (), (), {}, tree_kind="random", seed=8), "query"))
     assert model.planned_tree() is None
+
+
+def test_a_dead_robots_verdict_on_a_live_one_is_not_taken() -> None:
+    """The far side of a healed partition declares the near side dead: the fleet does not act
+    on it (a detector already declared dead), so the picture must not either."""
+    model = FleetModel()
+    for robot in (0, 2):
+        model.apply(Record(0.0, keys.status(M, robot),
+                           RobotStatus(robot, 1, (0, robot), "nb", "", "x")))
+    model.apply(Record(1.0, keys.death(M, 2), DeathNotice(2, 1, 0, "token", 1.0)))
+    model.apply(Record(2.0, keys.death(M, 0), DeathNotice(0, 1, 2, "token", 2.0)))
+    assert model.robots[2].dead and not model.robots[0].dead
+    assert list(model.deaths) == [(2, 1)]
+    assert model.invalid["death.dead_detector"] == 1

@@ -213,6 +213,9 @@ class FleetModel:
                                            known.token_lost,
                                            (*known.detectors, notice.detected_by))
             return
+        if self.roster.verdict_of_the_dead(notice, view):
+            self.invalid["death.dead_detector"] += 1
+            return
         if notice.reason == "leaving":
             view.left = True
             if self._once("left", *ident):

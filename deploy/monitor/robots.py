@@ -84,6 +84,14 @@ class Roster:
             view.messages += 1
         return view
 
+    def verdict_of_the_dead(self, notice: DeathNotice, about: RobotView) -> bool:
+        """A death notice of a robot already declared dead about one that is not: the fleet
+        does not act on it (the far side of a healed partition), so neither does the picture."""
+        by = notice.detected_by
+        detector = None if by is None or by == notice.robot else self.robots.get(by)
+        return detector is not None and detector.death is not None and about.death is None \
+            and detector.death.incarnation >= detector.incarnation
+
     def parse(self, key: str) -> keys.ParsedKey | None:
         """keys.parse, cached: a mission has few distinct keys and each is heard often."""
         try:
