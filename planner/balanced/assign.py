@@ -34,11 +34,16 @@ from planner.balanced.relocate import cell_distances, sub_cell_route
 from planner.balanced.state import PartitionState, articulation_points
 from planner.geometry import cell_of, sub_cells_of
 from planner.grid import WorkArea
-from planner.types import IntArray, SubCell
+from planner.types import Int32Array, IntArray, SubCell
 
 SPACING = 4  # cells between robot starts kept as seeds
 ASSIGN_ROUNDS = 5  # assignment + partition rounds at most (each 0.02-0.04 s of CPU at k = 30)
+# Robot-rounds the assignment may spend (rounds cost about k times more on large maps):
+# all five up to k = 120, two at k = 300, one from k = 301 on (docs/balanced.md, "Planning
+# at scale": on the city maps the second round was the last to win at k = 300).
+ASSIGN_BUDGET = 600
 UNREACHABLE = 1 << 30  # a walk that cannot be made
+CHUNK = 128  # robots per block of the distance arrays (bounds their temporary copies)
 
 Routes = dict[int, tuple[SubCell, ...]]
 MakePartition = Callable[[Sequence[SubCell], Sequence[int] | None], PartitionState | None]
@@ -62,7 +67,7 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int
     walks = start_distances(area)
     best: tuple[PartitionState, Routes] | None = None
     walked = UNREACHABLE
-    for _ in range(ASSIGN_ROUNDS):
+    for _ in range(min(ASSIGN_ROUNDS, max(1, ASSIGN_BUDGET // base.k))):
         if state is None:
             break
         routes = entry_routes(area, state, walks)
@@ -122,8 +127,9 @@ def _lower_distances(state: PartitionState, dist: dict[int, int], source: int,
                 queue.append(v)
 
 
-def start_distances(area: WorkArea) -> IntArray:
-    """Breadth-first sub-cell distances from each start (k x rows*cols; UNREACHABLE: none)."""
+def start_distances(area: WorkArea) -> Int32Array:
+    """Breadth-first sub-cell distances from each start (k x rows*cols, int32; UNREACHABLE:
+    none)."""
     free = area.sub_cells
     h, w = free.shape
     flat = free.ravel()
@@ -137,11 +143,16 @@ def start_distances(area: WorkArea) -> IntArray:
     graph = coo_matrix((np.ones(2 * a.size), (np.concatenate([a, b]), np.concatenate([b, a]))),
                        shape=(flat.size, flat.size)).tocsr()
     sources = [r * w + c for r, c in area.starts]
-    dist = shortest_path(graph, unweighted=True, indices=sources)
-    return np.where(np.isfinite(dist), dist, UNREACHABLE).astype(np.int64)
+    # int32, filled in blocks: scipy returns float64 (0.5 GB for k = 1000 on 256 x 256)
+    out = np.empty((len(sources), flat.size), dtype=np.int32)
+    for at in range(0, len(sources), CHUNK):
+        dist = shortest_path(graph, unweighted=True, indices=sources[at:at + CHUNK])
+        dist[~np.isfinite(dist)] = UNREACHABLE
+        out[at:at + CHUNK] = dist
+    return out
 
 
-def entry_routes(area: WorkArea, state: PartitionState, walks: IntArray) -> Routes:
+def entry_routes(area: WorkArea, state: PartitionState, walks: Int32Array) -> Routes:
     """Walks (start first) of the robots to the regions ``assign_regions`` gives them.
 
     A robot whose start lies in its region walks nowhere; the others walk to the nearest
@@ -163,8 +174,10 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: IntArray) -> Rout
     regions = [region for region, entry in enumerate(entries) if entry]
     if regions:
         bounds = np.cumsum([0] + [len(entries[region]) for region in regions[:-1]])
-        gathered = walks[:, [i for region in regions for i in entries[region]]]
-        travel[:, regions] = np.minimum.reduceat(gathered, bounds, axis=1)
+        columns = [i for region in regions for i in entries[region]]
+        for at in range(0, state.k, CHUNK):  # robots in blocks: the gather is k x n
+            gathered = walks[at:at + CHUNK, columns]
+            travel[at:at + CHUNK, regions] = np.minimum.reduceat(gathered, bounds, axis=1)
     for robot, (r, c) in enumerate(area.starts):
         if r * w + c in inside:
             travel[robot, inside[r * w + c]] = 0

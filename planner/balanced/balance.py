@@ -156,16 +156,27 @@ def _moves_of(state: PartitionState, giver: int, taker: int | None, unit: int,
 
 def _find_chain(state: PartitionState, donor: int, unit: int,
                 blocked: set[tuple[int, int]]) -> list[int] | None:
-    """Shortest chain of regions from ``donor`` to one that can take ``unit`` and gain."""
+    """Shortest chain of regions from ``donor`` to one that can take ``unit`` and gain.
+
+    A search that fails with no hop left out proves that no region it reached can reach a
+    taker at or below its limit; while the partition is unchanged (PartitionState.version,
+    which a rolled-back chain restores) later searches with that unit and a limit no higher
+    skip those regions.
+    Many largest regions tie on large k and their searches overlap: this makes the repeats
+    cost a lookup instead of a pass over the region graph.
+    """
     limit = state.load[donor] - unit - 1
     if min(state.load) > limit:
         return None  # no region could take it: spare the search its region scans
+    dead = _dead_regions(state, unit, limit)
+    if donor in dead:
+        return None
     parent = {donor: donor}
     queue = deque([donor])
     while queue:
         x = queue.popleft()
         for y in _takers(state, x, unit):
-            if y in parent or (x, y) in blocked:
+            if y in parent or y in dead or (x, y) in blocked:
                 continue
             parent[y] = x
             if state.load[y] <= limit:
@@ -174,7 +185,18 @@ def _find_chain(state: PartitionState, donor: int, unit: int,
                     chain.append(parent[chain[-1]])
                 return chain[::-1]
             queue.append(y)
+    if not blocked:  # with hops left out, the regions reached may reach a taker after all
+        dead.update(parent)
     return None
+
+
+def _dead_regions(state: PartitionState, unit: int, limit: int) -> set[int]:
+    """Regions known (this state version) to reach no region of load <= ``limit``."""
+    key, found = state.dead_ends.get(unit, (None, set()))
+    if key is None or key[0] != state.version or key[1] < limit:
+        found = set()
+    state.dead_ends[unit] = ((state.version, limit), found)
+    return found
 
 
 def _takers(state: PartitionState, giver: int, unit: int) -> list[int]:
@@ -288,6 +310,9 @@ def _relieve(state: PartitionState) -> bool:
         if len(state.whole[giver]) < 2:
             continue
         cut = state.cut_cells(giver)
+        reach = state.load[giver] - offers.lowest_taker[giver]
+        if best is not None and reach * reach <= 4 * best[0]:
+            continue  # the bound above with this giver's own takers (k = 1000: most givers)
         for u, takers in sorted(offers.of(giver).items()):
             if state.pinned(u):
                 continue
@@ -325,15 +350,24 @@ class _Offers:
         other = label[state.edge_dst]
         mask = (own >= 0) & (other >= 0) & (own != other)
         mask[mask] &= load[other[mask]] + WHOLE < load[own[mask]]
-        self._cell = state.edge_src[mask]
-        self._own = own[mask]
-        self._other = other[mask]
-        self.givers: list[int] = np.unique(self._own).tolist()
+        own = own[mask]
+        # grouped by giver (a stable sort keeps each giver's pairs in edge order), so that
+        # of() slices instead of masking all pairs: with k = 1000 it runs 10^5 times a plan
+        order = np.argsort(own, kind="stable")
+        self._cell = state.edge_src[mask][order]
+        self._other = other[mask][order]
+        own = own[order]
+        givers, first = np.unique(own, return_index=True)
+        self.givers: list[int] = givers.tolist()
+        ends = [*first[1:].tolist(), len(own)] if len(own) else []
+        lowest = np.minimum.reduceat(load[self._other], first) if len(own) else first
+        self.lowest_taker: dict[int, int] = dict(zip(self.givers, lowest.tolist(), strict=True))
+        self._span = dict(zip(self.givers, zip(first.tolist(), ends, strict=True), strict=True))
 
     def of(self, giver: int) -> dict[int, set[int]]:
-        pick = self._own == giver
+        lo, hi = self._span.get(giver, (0, 0))
         out: dict[int, set[int]] = {}
-        for u, y in zip(self._cell[pick].tolist(), self._other[pick].tolist(), strict=True):
+        for u, y in zip(self._cell[lo:hi].tolist(), self._other[lo:hi].tolist(), strict=True):
             out.setdefault(u, set()).add(y)
         return out
 

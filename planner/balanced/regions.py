@@ -33,6 +33,11 @@ from planner.types import SubCell
 BOXED_SHORTFALL = 8  # sub-cells (two cells) below the best size before a robot is sent out
 RELOCATION_RADII = (5, 8, 3)  # cells a squeezed robot may walk to a new seed, in turn
 MAX_PARTITIONS = 4  # partitions per plan at most (each 0.03-0.15 s of CPU at k = 30)
+# Robot-partitions the relocation tries may spend: a partition costs about k times more
+# on large maps, and on the city maps of docs/balanced.md ("Planning at scale") relocation
+# never won from k = 75 up, so k <= 50 keeps all three tries, k = 75 two, k = 100 one,
+# k > 150 none.
+RELOCATION_BUDGET = 150
 
 
 def partition(area: WorkArea, *, seed: int = 0, starts: Sequence[SubCell] | None = None,
@@ -82,7 +87,8 @@ def plan_regions(area: WorkArea, *, seed: int = 0
     best_routes: dict[int, tuple[SubCell, ...]] = {}
     made = 1
     tried: set[frozenset[tuple[int, SubCell]]] = set()
-    while made < MAX_PARTITIONS and max(best.load) > goal:
+    tries = min(MAX_PARTITIONS - 1, RELOCATION_BUDGET // state.k)
+    while made <= tries and max(best.load) > goal:
         for routes in _route_sets(area, best, best_routes):
             key = frozenset((r, w[-1]) for r, w in routes.items())
             if key not in tried:
