@@ -93,38 +93,53 @@ def spread_seeds(state: PartitionState, starts: Sequence[int], spacing: int) -> 
     """
     cells = {u for u, free in enumerate(state.free) if free}
     seeds: list[int] = []
+    kept: set[int] = set()
     for u in starts:
-        near = cell_distances(state, seeds, cells, limit=spacing - 1) if seeds else {}
-        if u not in near:
+        # a seed within spacing - 1 cells of u is a u within that of a seed (the same test
+        # as a search from all seeds, at the cost of a small ball round u)
+        if not kept.intersection(cell_distances(state, [u], cells, limit=spacing - 1)):
             seeds.append(u)
+            kept.add(u)
     # a seed inside a corridor would box a neighbour in, one on a start would share its cell
     avoid = articulation_points(cells, state.neighbours) | set(starts)
     room = cell_distances(state, seeds, cells)
+    # farthest-point choice as arrays: open cells first, then farthest, then lowest index
+    order = np.asarray(sorted(cells), dtype=np.int64)
+    index = {u: i for i, u in enumerate(order.tolist())}
+    far = np.asarray([room.get(u, UNREACHABLE) for u in order.tolist()], dtype=np.int64)
+    shut = np.asarray([u in avoid for u in order.tolist()], dtype=bool)
     while len(seeds) < len(starts):
-        candidates = [u for u in cells if room.get(u, UNREACHABLE) > 0]
-        if not candidates:
+        free = far > 0
+        if not free.any():
             break  # fewer cells than robots
-        seeds.append(max(candidates, key=lambda u: (u not in avoid, room.get(u, UNREACHABLE), -u)))
-        _lower_distances(state, room, seeds[-1], cells)
+        pool = free & ~shut if (free & ~shut).any() else free
+        top = far[pool].max()
+        seeds.append(int(order[np.flatnonzero(pool & (far == top))[0]]))
+        for v in _lower_distances(state, room, seeds[-1], cells):
+            far[index[v]] = room[v]
     return seeds
 
 
 def _lower_distances(state: PartitionState, dist: dict[int, int], source: int,
-                     cells: set[int]) -> None:
+                     cells: set[int]) -> list[int]:
     """Update nearest-source distances (cell_distances) in place for one more source.
 
     Breadth-first from the new source through the cells it brings closer only: a cell
     that gets closer is reached through a neighbour that got closer too, so this gives
-    what a fresh search from all sources gives, at a fraction of the cost.
+    what a fresh search from all sources gives, at a fraction of the cost. Returns the
+    cells whose distance changed.
     """
     dist[source] = 0
+    changed = [source]
     queue = deque([source])
     while queue:
         u = queue.popleft()
         for v in state.neighbours[u]:
             if v in cells and dist[u] + 1 < dist.get(v, UNREACHABLE):
                 dist[v] = dist[u] + 1
+                changed.append(v)
                 queue.append(v)
+    return changed
 
 
 def start_distances(area: WorkArea) -> Int32Array:

@@ -30,6 +30,7 @@ _RETRIES = 4  # chains tried per donor when one fails on execution
 LOCAL_TEST_SIZE = 64  # regions larger than this try the local cut test first
 RESHAPES_PER_ROBOT = 2  # bound the costliest move (see reshape.py): how often,
 RESHAPE_PAIRS = 8  # and how many pairs each time
+BATCH_FROM = 48  # robots above which _relieve makes many disjoint hand-overs per scan
 
 
 class _Move(NamedTuple):  # a tuple: built thousands of times per plan
@@ -298,8 +299,13 @@ def _relieve(state: PartitionState) -> bool:
     Giving an articulation cell also gives the part of the region it cuts off (when that
     part holds no pinned cell): this is how a region sheds a one-cell-wide strip that the
     chains cannot pass a single cell through. Taken only when it lowers the sum of squared
-    loads, so the balancing loop still terminates.
+    loads, so the balancing loop still terminates. With more than BATCH_FROM robots, the
+    best hand-over of every giver is found in the one scan and as many as touch disjoint
+    regions are made (best first): a hand-over depends only on its two regions, so each
+    still lowers the sum, and a scan of the whole boundary no longer buys a single cell.
     """
+    if state.k > BATCH_FROM:
+        return _relieve_many(state)
     best: tuple[int, int, int, list[int]] | None = None
     offers = _Offers(state)
     low = min(state.load)
@@ -313,29 +319,62 @@ def _relieve(state: PartitionState) -> bool:
         reach = state.load[giver] - offers.lowest_taker[giver]
         if best is not None and reach * reach <= 4 * best[0]:
             continue  # the bound above with this giver's own takers (k = 1000: most givers)
-        for u, takers in sorted(offers.of(giver).items()):
-            if state.pinned(u):
-                continue
-            piece = _piece(state, giver, u) if u in cut else [u]
-            if not piece:
-                continue
-            amount = WHOLE * len(piece)
-            for y in sorted(takers):
-                gap = state.load[giver] - state.load[y] - amount
-                gain = amount * gap
-                if gap > 0 and (best is None or gain > best[0]):
-                    best = (gain, giver, y, piece)
+        found = _best_offer(state, offers, giver, cut, 0 if best is None else best[0])
+        if found is not None:
+            best = (found[0], giver, found[1], found[2])
     if best is None:
         return False
     _, giver, taker, piece = best
-    for u in piece:
-        state.release(giver, u)
-        state.claim(taker, u)
+    _hand_over(state, giver, taker, piece)
     return True
 
 
+def _relieve_many(state: PartitionState) -> bool:
+    offers = _Offers(state)
+    found = []
+    for giver in offers.givers:
+        if len(state.whole[giver]) < 2:
+            continue
+        offer = _best_offer(state, offers, giver, state.cut_cells(giver), 0)
+        if offer is not None:
+            found.append((-offer[0], giver, offer[1], offer[2]))
+    used: set[int] = set()
+    for _, giver, taker, piece in sorted(found, key=lambda f: (f[0], f[1])):
+        if giver in used or taker in used:
+            continue
+        used.update((giver, taker))
+        _hand_over(state, giver, taker, piece)
+    return bool(used)
+
+
+def _best_offer(state: PartitionState, offers: _Offers, giver: int, cut: set[int],
+                floor: int) -> tuple[int, int, list[int]] | None:
+    """(gain, taker, piece) of ``giver``'s best hand-over with a gain above ``floor``."""
+    load = state.load
+    best: tuple[int, int, list[int]] | None = None
+    last, piece, amount = -1, [], 0
+    for u, y in offers.of(giver):  # by cell, then taker: the first of equal gains wins
+        if u != last:
+            last = u
+            piece = [] if state.pinned(u) else _piece(state, giver, u) if u in cut else [u]
+            amount = WHOLE * len(piece)
+        if not piece:
+            continue
+        gap = load[giver] - load[y] - amount
+        gain = amount * gap
+        if gap > 0 and gain > floor and (best is None or gain > best[0]):
+            best = (gain, y, piece)
+    return best
+
+
+def _hand_over(state: PartitionState, giver: int, taker: int, piece: list[int]) -> None:
+    for u in piece:
+        state.release(giver, u)
+        state.claim(taker, u)
+
+
 class _Offers:
-    """Giver -> its whole cells -> neighbouring regions smaller by more than a cell.
+    """Giver -> (whole cell, neighbouring region smaller by more than a cell) pairs.
 
     One vectorised pass over all neighbouring cell pairs (numpy) instead of a Python scan of
     every region's cells: the relieve move runs hundreds of times on a stalled partition.
@@ -351,11 +390,12 @@ class _Offers:
         mask = (own >= 0) & (other >= 0) & (own != other)
         mask[mask] &= load[other[mask]] + WHOLE < load[own[mask]]
         own = own[mask]
-        # grouped by giver (a stable sort keeps each giver's pairs in edge order), so that
-        # of() slices instead of masking all pairs: with k = 1000 it runs 10^5 times a plan
-        order = np.argsort(own, kind="stable")
-        self._cell = state.edge_src[mask][order]
-        self._other = other[mask][order]
+        # sorted by giver, cell, taker, so that of() slices instead of masking all pairs and
+        # building dictionaries: with k = 1000 it runs 10^5 times a plan
+        cell, other = state.edge_src[mask], other[mask]
+        order = np.lexsort((other, cell, own))
+        self._cell = cell[order]
+        self._other = other[order]
         own = own[order]
         givers, first = np.unique(own, return_index=True)
         self.givers: list[int] = givers.tolist()
@@ -364,12 +404,10 @@ class _Offers:
         self.lowest_taker: dict[int, int] = dict(zip(self.givers, lowest.tolist(), strict=True))
         self._span = dict(zip(self.givers, zip(first.tolist(), ends, strict=True), strict=True))
 
-    def of(self, giver: int) -> dict[int, set[int]]:
+    def of(self, giver: int) -> list[tuple[int, int]]:
+        """(cell, taker) pairs of ``giver``, sorted (a pair may repeat)."""
         lo, hi = self._span.get(giver, (0, 0))
-        out: dict[int, set[int]] = {}
-        for u, y in zip(self._cell[lo:hi].tolist(), self._other[lo:hi].tolist(), strict=True):
-            out.setdefault(u, set()).add(y)
-        return out
+        return list(zip(self._cell[lo:hi].tolist(), self._other[lo:hi].tolist(), strict=True))
 
 
 def _piece(state: PartitionState, robot: int, u: int) -> list[int]:
