@@ -23,7 +23,6 @@ ITERATIONS = 300
 STEP = 0.5
 DECAY = 0.98
 _UNREACHABLE = 1 << 30
-PATIENCE = 40  # weight iterations without a smaller largest region before giving up (many robots)
 MANY = 48  # robots from which the owners come from a Dijkstra (_Owners), not a k x N argmin
 _CHUNK = 128  # sources per shortest_path call: bounds the float64 block it returns
 
@@ -58,19 +57,13 @@ def voronoi_labels(state: PartitionState) -> IntArray:
     weights = np.zeros(len(robots))
     best: tuple[int, IntArray] | None = None
     step = STEP
-    # with many robots, stop once the largest region has not shrunk for PATIENCE rounds
-    # (a robot boxed in by others' starts keeps it from ever reaching the cap)
-    patience = PATIENCE if len(robots) > MANY else ITERATIONS
-    since = 0
     for _ in range(ITERATIONS):
         owner = argmin(weights)
         sizes = np.bincount(owner, minlength=len(robots))
         worst = int(sizes.max())
-        since += 1
         if best is None or worst < best[0]:
             best = (worst, owner)
-            since = 0
-        if worst <= cap or since >= patience:
+        if worst <= cap:
             break
         weights += step * scale * (sizes - target) / target
         step *= DECAY
