@@ -58,8 +58,8 @@ def test_many_robot_plans_are_the_same_for_the_same_seed() -> None:
 
 @pytest.mark.parametrize("seed", range(3))
 def test_dijkstra_owners_equal_the_dense_argmin(seed: int) -> None:
-    """_Owners (many robots) against dist + weight argmin over the full k x N table; the
-    weights are random reals, so no two robots tie on a cell."""
+    """_Owners (many robots) against dist + weight argmin over the full k x N table, with
+    ties (all weights 0, integer weights) going to the lowest robot there too."""
     grid = city_grid(96, seed)
     area = work_area(grid, random_starts(grid, 2 * MANY + 10, seed))
     state = PartitionState(area.cells, area.starts)
@@ -71,6 +71,7 @@ def test_dijkstra_owners_equal_the_dense_argmin(seed: int) -> None:
     dist = _distances(state, cells, seeds)
     dense = dist[:, owners.reach].T.astype(np.float64)
     rng = np.random.default_rng(seed)
-    for scale in (0.0, 3.0, 30.0):
-        weights = rng.normal(0.0, scale, len(robots)) + rng.random(len(robots)) * 1e-3
+    trials = [np.zeros(len(robots)), rng.integers(-5, 6, len(robots)).astype(np.float64)]
+    trials += [rng.normal(0.0, scale, len(robots)) for scale in (3.0, 30.0)]
+    for weights in trials:
         assert (owners.argmin(weights) == (dense + weights).argmin(axis=1)).all()

@@ -23,6 +23,7 @@ ITERATIONS = 300
 STEP = 0.5
 DECAY = 0.98
 _UNREACHABLE = 1 << 30
+TIE = 1e-9  # per robot index: breaks exact ties towards the lowest robot (_Owners)
 MANY = 48  # robots from which the owners come from a Dijkstra (_Owners), not a k x N argmin
 _CHUNK = 128  # sources per shortest_path call: bounds the float64 block it returns
 
@@ -99,12 +100,14 @@ class _Owners:
         # CSR orders entries by row: the k virtual rows come last, one entry each
         self.graph = graph
         self.virtual = virtual
+        self.ties = TIE * np.arange(k, dtype=np.float64)
         reached = self._sources(np.zeros(k))
         self.reach = reached >= 0
         self.cols = np.asarray(cells, dtype=np.int64)[self.reach]
 
     def _sources(self, weights: np.ndarray) -> IntArray:
-        self.graph.data[-len(weights):] = weights - weights.min() + 1.0
+        # + TIE x robot: equal values go to the lowest robot, as in the dense argmin
+        self.graph.data[-len(weights):] = weights - weights.min() + 1.0 + self.ties
         _, _, sources = dijkstra(self.graph, indices=self.virtual, min_only=True,
                                  return_predecessors=True)
         found = np.asarray(sources[: self.m], dtype=np.int64)
