@@ -73,11 +73,11 @@ def plan_regions(area: WorkArea, *, seed: int = 0
     a few cells away (relocate.py, one radius per try), or boxed-in robots walked out to the
     nearest open cell (escape_routes). A new partition is kept only if its largest load
     (walk included) is smaller, and later tries start from the best so far; at most
-    MAX_PARTITIONS partitions are made so. If the best is still above the average, robots
-    are assigned to regions grown from spread seeds (assign.py, up to 1 + ASSIGN_ROUNDS more
-    partitions), kept on the same terms. If the best is still above the average and some
-    robots walk, one more partition seeds them a cell earlier along their walks
-    (pullback.py), kept on the same terms.
+    MAX_PARTITIONS partitions are made so (fewer with many robots: RELOCATION_BUDGET). If
+    the best is still above the average, robots are assigned to regions grown from spread
+    seeds (assign.py, up to 1 + ASSIGN_ROUNDS more partitions), kept on the same terms. If
+    the best is still above the average and some robots walk, one more partition seeds
+    them a cell earlier along their walks (pullback.py), kept on the same terms.
     """
     state = _partition_state(area, seed, None, None)
     if state is None:
