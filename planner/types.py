@@ -20,6 +20,7 @@ from planner.geometry import SubCell as SubCell
 
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.int64]
+Int32Array = npt.NDArray[np.int32]  # large distance tables (half the memory of IntArray)
 
 
 def _frozen(array: npt.NDArray[np.generic]) -> npt.NDArray[np.generic]:

@@ -133,4 +133,9 @@ def test_neighbour_pairs_and_offers_match_a_plain_scan(k: int, seed: int) -> Non
     found = _Offers(state)
     assert found.givers == sorted(offers)
     for giver in found.givers:
-        assert found.of(giver) == offers[giver]
+        pairs_of = found.of(giver)
+        assert pairs_of == sorted(pairs_of)
+        assert sorted(set(pairs_of)) == sorted((u, y) for u, ys in offers[giver].items()
+                                               for y in ys)
+        assert found.lowest_taker[giver] == min(state.load[y] for ys in offers[giver].values()
+                                                for y in ys)

@@ -34,11 +34,16 @@ from planner.balanced.relocate import cell_distances, sub_cell_route
 from planner.balanced.state import PartitionState, articulation_points
 from planner.geometry import cell_of, sub_cells_of
 from planner.grid import WorkArea
-from planner.types import IntArray, SubCell
+from planner.types import Int32Array, IntArray, SubCell
 
 SPACING = 4  # cells between robot starts kept as seeds
 ASSIGN_ROUNDS = 5  # assignment + partition rounds at most (each 0.02-0.04 s of CPU at k = 30)
+# Robot-rounds the assignment may spend (rounds cost about k times more on large maps):
+# all five up to k = 120, two at k = 300, one from k = 301 on (docs/balanced.md, "Planning
+# at scale": on the city maps the second round was the last to win at k = 300).
+ASSIGN_BUDGET = 600
 UNREACHABLE = 1 << 30  # a walk that cannot be made
+CHUNK = 128  # robots per block of the distance arrays (bounds their temporary copies)
 
 Routes = dict[int, tuple[SubCell, ...]]
 MakePartition = Callable[[Sequence[SubCell], Sequence[int] | None], PartitionState | None]
@@ -62,7 +67,7 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int
     walks = start_distances(area)
     best: tuple[PartitionState, Routes] | None = None
     walked = UNREACHABLE
-    for _ in range(ASSIGN_ROUNDS):
+    for _ in range(min(ASSIGN_ROUNDS, max(1, ASSIGN_BUDGET // base.k))):
         if state is None:
             break
         routes = entry_routes(area, state, walks)
@@ -88,42 +93,58 @@ def spread_seeds(state: PartitionState, starts: Sequence[int], spacing: int) -> 
     """
     cells = {u for u, free in enumerate(state.free) if free}
     seeds: list[int] = []
+    kept: set[int] = set()
     for u in starts:
-        near = cell_distances(state, seeds, cells, limit=spacing - 1) if seeds else {}
-        if u not in near:
+        # a seed within spacing - 1 cells of u is a u within that of a seed (the same test
+        # as a search from all seeds, at the cost of a small ball round u)
+        if not kept.intersection(cell_distances(state, [u], cells, limit=spacing - 1)):
             seeds.append(u)
+            kept.add(u)
     # a seed inside a corridor would box a neighbour in, one on a start would share its cell
     avoid = articulation_points(cells, state.neighbours) | set(starts)
     room = cell_distances(state, seeds, cells)
+    # farthest-point choice as arrays: open cells first, then farthest, then lowest index
+    order = np.asarray(sorted(cells), dtype=np.int64)
+    index = {u: i for i, u in enumerate(order.tolist())}
+    far = np.asarray([room.get(u, UNREACHABLE) for u in order.tolist()], dtype=np.int64)
+    shut = np.asarray([u in avoid for u in order.tolist()], dtype=bool)
     while len(seeds) < len(starts):
-        candidates = [u for u in cells if room.get(u, UNREACHABLE) > 0]
-        if not candidates:
+        free = far > 0
+        if not free.any():
             break  # fewer cells than robots
-        seeds.append(max(candidates, key=lambda u: (u not in avoid, room.get(u, UNREACHABLE), -u)))
-        _lower_distances(state, room, seeds[-1], cells)
+        pool = free & ~shut if (free & ~shut).any() else free
+        top = far[pool].max()
+        seeds.append(int(order[np.flatnonzero(pool & (far == top))[0]]))
+        for v in _lower_distances(state, room, seeds[-1], cells):
+            far[index[v]] = room[v]
     return seeds
 
 
 def _lower_distances(state: PartitionState, dist: dict[int, int], source: int,
-                     cells: set[int]) -> None:
+                     cells: set[int]) -> list[int]:
     """Update nearest-source distances (cell_distances) in place for one more source.
 
     Breadth-first from the new source through the cells it brings closer only: a cell
     that gets closer is reached through a neighbour that got closer too, so this gives
-    what a fresh search from all sources gives, at a fraction of the cost.
+    what a fresh search from all sources gives, at a fraction of the cost. Returns the
+    cells whose distance changed.
     """
     dist[source] = 0
+    changed = [source]
     queue = deque([source])
     while queue:
         u = queue.popleft()
         for v in state.neighbours[u]:
             if v in cells and dist[u] + 1 < dist.get(v, UNREACHABLE):
                 dist[v] = dist[u] + 1
+                changed.append(v)
                 queue.append(v)
+    return changed
 
 
-def start_distances(area: WorkArea) -> IntArray:
-    """Breadth-first sub-cell distances from each start (k x rows*cols; UNREACHABLE: none)."""
+def start_distances(area: WorkArea) -> Int32Array:
+    """Breadth-first sub-cell distances from each start (k x rows*cols, int32; UNREACHABLE:
+    none)."""
     free = area.sub_cells
     h, w = free.shape
     flat = free.ravel()
@@ -137,11 +158,16 @@ def start_distances(area: WorkArea) -> IntArray:
     graph = coo_matrix((np.ones(2 * a.size), (np.concatenate([a, b]), np.concatenate([b, a]))),
                        shape=(flat.size, flat.size)).tocsr()
     sources = [r * w + c for r, c in area.starts]
-    dist = shortest_path(graph, unweighted=True, indices=sources)
-    return np.where(np.isfinite(dist), dist, UNREACHABLE).astype(np.int64)
+    # int32, filled in blocks: scipy returns float64 (0.5 GB for k = 1000 on 256 x 256)
+    out = np.empty((len(sources), flat.size), dtype=np.int32)
+    for at in range(0, len(sources), CHUNK):
+        dist = shortest_path(graph, unweighted=True, indices=sources[at:at + CHUNK])
+        dist[~np.isfinite(dist)] = UNREACHABLE
+        out[at:at + CHUNK] = dist
+    return out
 
 
-def entry_routes(area: WorkArea, state: PartitionState, walks: IntArray) -> Routes:
+def entry_routes(area: WorkArea, state: PartitionState, walks: Int32Array) -> Routes:
     """Walks (start first) of the robots to the regions ``assign_regions`` gives them.
 
     A robot whose start lies in its region walks nowhere; the others walk to the nearest
@@ -163,8 +189,10 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: IntArray) -> Rout
     regions = [region for region, entry in enumerate(entries) if entry]
     if regions:
         bounds = np.cumsum([0] + [len(entries[region]) for region in regions[:-1]])
-        gathered = walks[:, [i for region in regions for i in entries[region]]]
-        travel[:, regions] = np.minimum.reduceat(gathered, bounds, axis=1)
+        columns = [i for region in regions for i in entries[region]]
+        for at in range(0, state.k, CHUNK):  # robots in blocks: the gather is k x n
+            gathered = walks[at:at + CHUNK, columns]
+            travel[at:at + CHUNK, regions] = np.minimum.reduceat(gathered, bounds, axis=1)
     for robot, (r, c) in enumerate(area.starts):
         if r * w + c in inside:
             travel[robot, inside[r * w + c]] = 0

@@ -30,6 +30,7 @@ _RETRIES = 4  # chains tried per donor when one fails on execution
 LOCAL_TEST_SIZE = 64  # regions larger than this try the local cut test first
 RESHAPES_PER_ROBOT = 2  # bound the costliest move (see reshape.py): how often,
 RESHAPE_PAIRS = 8  # and how many pairs each time
+BATCH_FROM = 48  # robots above which _relieve makes many disjoint hand-overs per scan
 
 
 class _Move(NamedTuple):  # a tuple: built thousands of times per plan
@@ -156,16 +157,27 @@ def _moves_of(state: PartitionState, giver: int, taker: int | None, unit: int,
 
 def _find_chain(state: PartitionState, donor: int, unit: int,
                 blocked: set[tuple[int, int]]) -> list[int] | None:
-    """Shortest chain of regions from ``donor`` to one that can take ``unit`` and gain."""
+    """Shortest chain of regions from ``donor`` to one that can take ``unit`` and gain.
+
+    A search that fails with no hop left out proves that no region it reached can reach a
+    taker at or below its limit; while the partition is unchanged (PartitionState.version,
+    which a rolled-back chain restores) later searches with that unit and a limit no higher
+    skip those regions.
+    Many largest regions tie on large k and their searches overlap: this makes the repeats
+    cost a lookup instead of a pass over the region graph.
+    """
     limit = state.load[donor] - unit - 1
     if min(state.load) > limit:
         return None  # no region could take it: spare the search its region scans
+    dead = _dead_regions(state, unit, limit)
+    if donor in dead:
+        return None
     parent = {donor: donor}
     queue = deque([donor])
     while queue:
         x = queue.popleft()
         for y in _takers(state, x, unit):
-            if y in parent or (x, y) in blocked:
+            if y in parent or y in dead or (x, y) in blocked:
                 continue
             parent[y] = x
             if state.load[y] <= limit:
@@ -174,7 +186,18 @@ def _find_chain(state: PartitionState, donor: int, unit: int,
                     chain.append(parent[chain[-1]])
                 return chain[::-1]
             queue.append(y)
+    if not blocked:  # with hops left out, the regions reached may reach a taker after all
+        dead.update(parent)
     return None
+
+
+def _dead_regions(state: PartitionState, unit: int, limit: int) -> set[int]:
+    """Regions known (this state version) to reach no region of load <= ``limit``."""
+    key, found = state.dead_ends.get(unit, (None, set()))
+    if key is None or key[0] != state.version or key[1] < limit:
+        found = set()
+    state.dead_ends[unit] = ((state.version, limit), found)
+    return found
 
 
 def _takers(state: PartitionState, giver: int, unit: int) -> list[int]:
@@ -276,8 +299,13 @@ def _relieve(state: PartitionState) -> bool:
     Giving an articulation cell also gives the part of the region it cuts off (when that
     part holds no pinned cell): this is how a region sheds a one-cell-wide strip that the
     chains cannot pass a single cell through. Taken only when it lowers the sum of squared
-    loads, so the balancing loop still terminates.
+    loads, so the balancing loop still terminates. With more than BATCH_FROM robots, the
+    best hand-over of every giver is found in the one scan and as many as touch disjoint
+    regions are made (best first): a hand-over depends only on its two regions, so each
+    still lowers the sum, and a scan of the whole boundary no longer buys a single cell.
     """
+    if state.k > BATCH_FROM:
+        return _relieve_many(state)
     best: tuple[int, int, int, list[int]] | None = None
     offers = _Offers(state)
     low = min(state.load)
@@ -288,29 +316,65 @@ def _relieve(state: PartitionState) -> bool:
         if len(state.whole[giver]) < 2:
             continue
         cut = state.cut_cells(giver)
-        for u, takers in sorted(offers.of(giver).items()):
-            if state.pinned(u):
-                continue
-            piece = _piece(state, giver, u) if u in cut else [u]
-            if not piece:
-                continue
-            amount = WHOLE * len(piece)
-            for y in sorted(takers):
-                gap = state.load[giver] - state.load[y] - amount
-                gain = amount * gap
-                if gap > 0 and (best is None or gain > best[0]):
-                    best = (gain, giver, y, piece)
+        reach = state.load[giver] - offers.lowest_taker[giver]
+        if best is not None and reach * reach <= 4 * best[0]:
+            continue  # the bound above with this giver's own takers (k = 1000: most givers)
+        found = _best_offer(state, offers, giver, cut, 0 if best is None else best[0])
+        if found is not None:
+            best = (found[0], giver, found[1], found[2])
     if best is None:
         return False
     _, giver, taker, piece = best
-    for u in piece:
-        state.release(giver, u)
-        state.claim(taker, u)
+    _hand_over(state, giver, taker, piece)
     return True
 
 
+def _relieve_many(state: PartitionState) -> bool:
+    offers = _Offers(state)
+    found = []
+    for giver in offers.givers:
+        if len(state.whole[giver]) < 2:
+            continue
+        offer = _best_offer(state, offers, giver, state.cut_cells(giver), 0)
+        if offer is not None:
+            found.append((-offer[0], giver, offer[1], offer[2]))
+    used: set[int] = set()
+    for _, giver, taker, piece in sorted(found, key=lambda f: (f[0], f[1])):
+        if giver in used or taker in used:
+            continue
+        used.update((giver, taker))
+        _hand_over(state, giver, taker, piece)
+    return bool(used)
+
+
+def _best_offer(state: PartitionState, offers: _Offers, giver: int, cut: set[int],
+                floor: int) -> tuple[int, int, list[int]] | None:
+    """(gain, taker, piece) of ``giver``'s best hand-over with a gain above ``floor``."""
+    load = state.load
+    best: tuple[int, int, list[int]] | None = None
+    last, piece, amount = -1, [], 0
+    for u, y in offers.of(giver):  # by cell, then taker: the first of equal gains wins
+        if u != last:
+            last = u
+            piece = [] if state.pinned(u) else _piece(state, giver, u) if u in cut else [u]
+            amount = WHOLE * len(piece)
+        if not piece:
+            continue
+        gap = load[giver] - load[y] - amount
+        gain = amount * gap
+        if gap > 0 and gain > floor and (best is None or gain > best[0]):
+            best = (gain, y, piece)
+    return best
+
+
+def _hand_over(state: PartitionState, giver: int, taker: int, piece: list[int]) -> None:
+    for u in piece:
+        state.release(giver, u)
+        state.claim(taker, u)
+
+
 class _Offers:
-    """Giver -> its whole cells -> neighbouring regions smaller by more than a cell.
+    """Giver -> (whole cell, neighbouring region smaller by more than a cell) pairs.
 
     One vectorised pass over all neighbouring cell pairs (numpy) instead of a Python scan of
     every region's cells: the relieve move runs hundreds of times on a stalled partition.
@@ -325,17 +389,25 @@ class _Offers:
         other = label[state.edge_dst]
         mask = (own >= 0) & (other >= 0) & (own != other)
         mask[mask] &= load[other[mask]] + WHOLE < load[own[mask]]
-        self._cell = state.edge_src[mask]
-        self._own = own[mask]
-        self._other = other[mask]
-        self.givers: list[int] = np.unique(self._own).tolist()
+        own = own[mask]
+        # sorted by giver, cell, taker, so that of() slices instead of masking all pairs and
+        # building dictionaries: with k = 1000 it runs 10^5 times a plan
+        cell, other = state.edge_src[mask], other[mask]
+        order = np.lexsort((other, cell, own))
+        self._cell = cell[order]
+        self._other = other[order]
+        own = own[order]
+        givers, first = np.unique(own, return_index=True)
+        self.givers: list[int] = givers.tolist()
+        ends = [*first[1:].tolist(), len(own)] if len(own) else []
+        lowest = np.minimum.reduceat(load[self._other], first) if len(own) else first
+        self.lowest_taker: dict[int, int] = dict(zip(self.givers, lowest.tolist(), strict=True))
+        self._span = dict(zip(self.givers, zip(first.tolist(), ends, strict=True), strict=True))
 
-    def of(self, giver: int) -> dict[int, set[int]]:
-        pick = self._own == giver
-        out: dict[int, set[int]] = {}
-        for u, y in zip(self._cell[pick].tolist(), self._other[pick].tolist(), strict=True):
-            out.setdefault(u, set()).add(y)
-        return out
+    def of(self, giver: int) -> list[tuple[int, int]]:
+        """(cell, taker) pairs of ``giver``, sorted (a pair may repeat)."""
+        lo, hi = self._span.get(giver, (0, 0))
+        return list(zip(self._cell[lo:hi].tolist(), self._other[lo:hi].tolist(), strict=True))
 
 
 def _piece(state: PartitionState, robot: int, u: int) -> list[int]:

@@ -33,6 +33,11 @@ from planner.types import SubCell
 BOXED_SHORTFALL = 8  # sub-cells (two cells) below the best size before a robot is sent out
 RELOCATION_RADII = (5, 8, 3)  # cells a squeezed robot may walk to a new seed, in turn
 MAX_PARTITIONS = 4  # partitions per plan at most (each 0.03-0.15 s of CPU at k = 30)
+# Robot-partitions the relocation tries may spend: a partition costs about k times more
+# on large maps, and on the city maps of docs/balanced.md ("Planning at scale") relocation
+# never won from k = 75 up, so k <= 50 keeps all three tries, k = 75 two, k = 100 one,
+# k > 150 none.
+RELOCATION_BUDGET = 150
 
 
 def partition(area: WorkArea, *, seed: int = 0, starts: Sequence[SubCell] | None = None,
@@ -68,11 +73,11 @@ def plan_regions(area: WorkArea, *, seed: int = 0
     a few cells away (relocate.py, one radius per try), or boxed-in robots walked out to the
     nearest open cell (escape_routes). A new partition is kept only if its largest load
     (walk included) is smaller, and later tries start from the best so far; at most
-    MAX_PARTITIONS partitions are made so. If the best is still above the average, robots
-    are assigned to regions grown from spread seeds (assign.py, up to 1 + ASSIGN_ROUNDS more
-    partitions), kept on the same terms. If the best is still above the average and some
-    robots walk, one more partition seeds them a cell earlier along their walks
-    (pullback.py), kept on the same terms.
+    MAX_PARTITIONS partitions are made so (fewer with many robots: RELOCATION_BUDGET). If
+    the best is still above the average, robots are assigned to regions grown from spread
+    seeds (assign.py, up to 1 + ASSIGN_ROUNDS more partitions), kept on the same terms. If
+    the best is still above the average and some robots walk, one more partition seeds
+    them a cell earlier along their walks (pullback.py), kept on the same terms.
     """
     state = _partition_state(area, seed, None, None)
     if state is None:
@@ -82,7 +87,8 @@ def plan_regions(area: WorkArea, *, seed: int = 0
     best_routes: dict[int, tuple[SubCell, ...]] = {}
     made = 1
     tried: set[frozenset[tuple[int, SubCell]]] = set()
-    while made < MAX_PARTITIONS and max(best.load) > goal:
+    tries = min(MAX_PARTITIONS - 1, RELOCATION_BUDGET // state.k)
+    while made <= tries and max(best.load) > goal:
         for routes in _route_sets(area, best, best_routes):
             key = frozenset((r, w[-1]) for r, w in routes.items())
             if key not in tried:

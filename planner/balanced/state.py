@@ -48,7 +48,10 @@ class PartitionState:
         self.pieces: dict[int, dict[int, list[int]]] = {}  # balance._piece cache
         # balance._takers cache: (robot, unit) -> (region version it was computed at, takers)
         self.takers: dict[tuple[int, int], tuple[int, list[int]]] = {}
-        self.version = 0  # bumped by every change
+        self.version = 0  # bumped by every change (restored by a rollback)
+        # balance._find_chain: unit -> ((version, limit), regions that cannot reach a taker)
+        self.dead_ends: dict[int, tuple[tuple[int, int], set[int]]] = {}
+        self._begun = 0
         # per region: bumped when its cells, its pins or the owner of a cell next to it change
         # (all that the moves out of a region depend on)
         self.region_version: list[int] = [0] * self.k
@@ -71,6 +74,7 @@ class PartitionState:
     # -- undo log ------------------------------------------------------------------------
     def begin(self) -> None:
         self._log = []
+        self._begun = self.version
 
     def commit(self) -> None:
         self._log = None
@@ -79,6 +83,7 @@ class PartitionState:
         log, self._log = self._log or [], None
         for undo in reversed(log):
             undo()
+        self.version = self._begun  # the same cells, owners and pins as at begin()
 
     def _record(self, undo: Callable[[], None]) -> None:
         self.version += 1
