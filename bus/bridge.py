@@ -285,18 +285,18 @@ class Bus:
             _log.debug("a delayed message was lost: the session closed")
 
     def subscribe(self, key: str, expected: Expected[M], handler: Callable[[str, M], None]
-                  | None = None, policy: Policy | None = None, *,
+                  | None = None, policy: Policy | None = None, *, recover: bool = False,
                   on_miss: Callable[[str | None, int, float | None], None] | None = None,
                   ) -> Subscription[M]:
-        """Subscribe to ``key`` (wildcards allowed); see Subscription. With ``on_miss`` the
-        subscription recovers what it missed from the publishers' caches (bus.recovery)
-        and calls ``on_miss(key, count, last heard)`` on the loop for samples no cache held
-        any more (key and time.monotonic() of the source's last sample, None if never heard);
-        each miss is counted as a drop ("missed") too."""
+        """Subscribe to ``key`` (wildcards allowed); see Subscription. With ``recover`` (or
+        ``on_miss``) the subscription recovers what it missed from the publishers' caches
+        (bus.recovery); each sample no cache held any more is counted as a drop ("missed")
+        and reported to ``on_miss(key, count, last heard)`` on the loop (key and
+        time.monotonic() of the source's last sample, None if it was never heard)."""
         sub: Subscription[M] = Subscription(self, key, expected, policy or BoundedFifo(),
                                             handler)
         callback = zenoh.handlers.Callback(sub._on_sample, indirect=False)
-        if on_miss is None:
+        if not recover and on_miss is None:
             sub._zenoh = self.session.declare_subscriber(key, callback)
         else:
             sources = sub.sources = MissedSources()
@@ -307,6 +307,8 @@ class Bus:
                 where = key if last is None else last[0]
                 self.drops.count(keys.kind_of(where), "missed", f"{count} from {source}",
                                  n=count)
+                if on_miss is None:
+                    return
                 with contextlib.suppress(RuntimeError):  # the loop closed: nobody listens
                     loop.call_soon_threadsafe(on_miss, None if last is None else last[0],
                                               count, None if last is None else last[1])
