@@ -24,6 +24,7 @@ from deploy.monitor.app import NullScreen, Watcher, watch_live
 from deploy.monitor.recorder import read_recording
 from deploy.monitor.report import build_report
 from deploy.monitor.types import Gap, Recording
+from deploy.monitor.view import FeedStats
 from tests.waiting import wait_until
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -134,16 +135,16 @@ def _cover_walks(watcher: Watcher) -> dict[int, int]:
 
 
 async def _record(fleet: Fleet, path: Path, fault: Callable[[], object],
-                  done: Callable[[Watcher], bool]) -> Recording:
+                  done: Callable[[Watcher], bool]) -> tuple[Recording, FeedStats]:
     """Record the mission while ``fault`` hits the router a third of the way through; stop
-    once ``done(watcher)``."""
+    once ``done(watcher)``. The recording, and the recorder's bus statistics."""
     role = None if fleet.creds is None else "observer"
     settings = ConnectionSettings(connect=(fleet.endpoint,), mission=MISSION,
                                   credentials=fleet.creds, role=role)
     watcher, stop = Watcher(NullScreen()), asyncio.Event()
     async with asyncio.TaskGroup() as group:
-        group.create_task(watch_live(settings, watcher, stop=stop, record=path,
-                                     world_period=60.0))
+        recorder = group.create_task(watch_live(settings, watcher, stop=stop, record=path,
+                                                world_period=60.0))
         await fleet.said("ready")
         await fleet.said("halfway")
         result = fault()
@@ -152,7 +153,7 @@ async def _record(fleet: Fleet, path: Path, fault: Callable[[], object],
         await fleet.said("done")
         await wait_until(lambda: done(watcher), 20.0, "the recording to catch up")
         stop.set()
-    return read_recording(path)
+    return read_recording(path), recorder.result()
 
 
 def _covers(recording: Recording) -> dict[int, list[int]]:
@@ -177,8 +178,9 @@ async def test_a_recording_cut_off_by_the_router_recovers_every_sample(
         return fleet.freeze_router(0.8)
 
     path = tmp_path / "rec.jsonl"
-    recording = await _record(fleet, path, inject, lambda w: _cover_walks(w) == {
+    recording, stats = await _record(fleet, path, inject, lambda w: _cover_walks(w) == {
         r: MOVES for r in range(ROBOTS)})
+    assert "sim/cover.missed" not in stats.drops
     assert _covers(recording) == {r: list(range(MOVES)) for r in range(ROBOTS)}
     assert not [r for r in recording.records if isinstance(r.msg, Gap)]
     report = build_report(recording)
@@ -197,7 +199,8 @@ async def test_what_no_cache_holds_is_a_gap_the_report_names_without_failing(
                     for r in range(ROBOTS) if r in watcher.model.robots)
         return len(walks) == ROBOTS and ended
 
-    recording = await _record(fleet, tmp_path / "rec.jsonl", fleet.restart_router, gaps)
+    recording, stats = await _record(fleet, tmp_path / "rec.jsonl", fleet.restart_router,
+                                     gaps)
     walks = _covers(recording)
     lost = {r: MOVES - len(walks[r]) for r in range(ROBOTS)}
     assert all(n > 0 for n in lost.values()), lost
@@ -210,6 +213,7 @@ async def test_what_no_cache_holds_is_a_gap_the_report_names_without_failing(
         assert gap.since is not None and gap.since < gap.until
         by_robot[parsed.robot] = by_robot.get(parsed.robot, 0) + gap.missed
     assert by_robot == lost
+    assert stats.drops["sim/cover.missed"] == sum(lost.values())  # the bus counts them too
     report = build_report(recording)
     assert report.ok, report.invariants
     adjacent = next(i for i in report.invariants if i.name == "every move 4-adjacent")
