@@ -34,7 +34,7 @@ from bus.inbox import BoundedFifo, Inbox, LatestWins, Policy, Received
 from bus.messages.schema import RECOVERABLE, ROBOT_NAMED
 from bus.qos import DEFAULT as DEFAULT_QOS
 from bus.qos import Qos, qos_for
-from bus.recovery import MissedSources, Publishers, declare_recovering_subscriber
+from bus.recovery import MissedSources, MissReport, Publishers, declare_recovering_subscriber
 
 __all__ = ["BoundedFifo", "Bus", "LatestWins", "LivelinessWatch", "Policy",
            "QueryableHandle", "Received", "Subscription"]
@@ -295,26 +295,14 @@ class Bus:
         time.monotonic() of the source's last sample, None if it was never heard)."""
         sub: Subscription[M] = Subscription(self, key, expected, policy or BoundedFifo(),
                                             handler)
-        callback = zenoh.handlers.Callback(sub._on_sample, indirect=False)
         if not recover and on_miss is None:
-            sub._zenoh = self.session.declare_subscriber(key, callback)
+            sub._zenoh = self.session.declare_subscriber(
+                key, zenoh.handlers.Callback(sub._on_sample, indirect=False))
         else:
-            sources = sub.sources = MissedSources()
-            loop = self.loop
-
-            def missed(source: str, count: int) -> None:
-                last = sources.last(source)
-                where = key if last is None else last[0]
-                self.drops.count(keys.kind_of(where), "missed", f"{count} from {source}",
-                                 n=count)
-                if on_miss is None:
-                    return
-                with contextlib.suppress(RuntimeError):  # the loop closed: nobody listens
-                    loop.call_soon_threadsafe(on_miss, None if last is None else last[0],
-                                              count, None if last is None else last[1])
-
+            report = MissReport(key, self.drops, self.loop, on_miss)
+            sub.sources = report.sources
             sub._zenoh, sub._miss_listener = declare_recovering_subscriber(
-                self.session, key, sub._on_sample, missed)
+                self.session, key, sub._on_sample, report)
         self._closables.append(sub)
         return sub
 

@@ -16,6 +16,8 @@ rules allow them where the family itself is allowed (bus.security.acl).
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import threading
 import time
 from collections.abc import Callable
@@ -24,6 +26,8 @@ from typing import Any
 import zenoh
 import zenoh.ext
 
+from bus import keys
+from bus.drops import DropCounter
 from bus.qos import Qos
 
 HEARTBEAT_S = 0.5
@@ -87,6 +91,27 @@ class MissedSources:
     def last(self, source: str) -> tuple[str, float] | None:
         """The key and the time of the last sample heard from ``source`` (None if none)."""
         return self._seen.get(source)
+
+
+class MissReport:
+    """What a recovering subscription does with a miss, on the Zenoh thread that reports it:
+    count it (by the kind of the key its source was last heard on) and hand ``on_miss(key,
+    count, last heard)`` to the loop."""
+
+    def __init__(self, key_expr: str, drops: DropCounter, loop: asyncio.AbstractEventLoop,
+                 on_miss: Callable[[str | None, int, float | None], None] | None) -> None:
+        self.sources = MissedSources()
+        self._key_expr, self._drops, self._loop, self._on_miss = key_expr, drops, loop, on_miss
+
+    def __call__(self, source: str, count: int) -> None:
+        last = self.sources.last(source)
+        where = self._key_expr if last is None else last[0]
+        self._drops.count(keys.kind_of(where), "missed", f"{count} from {source}", n=count)
+        if self._on_miss is None:
+            return
+        with contextlib.suppress(RuntimeError):  # the loop closed: nobody listens any more
+            self._loop.call_soon_threadsafe(self._on_miss, None if last is None else last[0],
+                                            count, None if last is None else last[1])
 
 
 def declare_recovering_subscriber(session: zenoh.Session, key_expr: str,
