@@ -31,9 +31,10 @@ from bus.drops import DropCounter
 from bus.errors import BusClosedError, DecodeError
 from bus.faults import MessageFaults
 from bus.inbox import BoundedFifo, Inbox, LatestWins, Policy, Received
-from bus.messages.schema import ROBOT_NAMED
+from bus.messages.schema import RECOVERABLE, ROBOT_NAMED
 from bus.qos import DEFAULT as DEFAULT_QOS
 from bus.qos import Qos, qos_for
+from bus.recovery import MissedSources, MissReport, Publishers, declare_recovering_subscriber
 
 __all__ = ["BoundedFifo", "Bus", "LatestWins", "LivelinessWatch", "Policy",
            "QueryableHandle", "Received", "Subscription"]
@@ -58,11 +59,15 @@ class Subscription(Generic[M]):
         self._inbox: Inbox[bytes] = Inbox(
             bus.loop, policy, self._on_wake,
             lambda k: bus.drops.count(keys.kind_of(k), "overflow", f"buffer full on {k}"))
-        self._zenoh: zenoh.Subscriber[None] | None = None
+        self._zenoh: Any = None  # a zenoh Subscriber or zenoh.ext AdvancedSubscriber
+        self._miss_listener: Any = None
+        self.sources: MissedSources | None = None  # for a recovering subscription
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         if sample.kind != zenoh.SampleKind.PUT:
             return
+        if self.sources is not None:
+            self.sources.heard(sample)
         key = str(sample.key_expr)
         # Refuse a flood of huge payloads before copying them out of Zenoh's buffers.
         if len(sample.payload) > self._bus.max_payload:
@@ -119,6 +124,9 @@ class Subscription(Generic[M]):
     def close(self) -> None:
         self._inbox.close()
         self._event.set()
+        if self._miss_listener is not None:
+            self._miss_listener.undeclare()
+            self._miss_listener = None
         if self._zenoh is not None:
             self._zenoh.undeclare()
             self._zenoh = None
@@ -204,6 +212,7 @@ class Bus:
         self._pending: set[asyncio.Task[None]] = set()
         self._closables: list[Subscription[Any] | LivelinessWatch | QueryableHandle] = []
         self._tokens: list[zenoh.LivelinessToken] = []
+        self._publishers = Publishers(session)
 
     @classmethod
     @asynccontextmanager
@@ -241,15 +250,21 @@ class Bus:
         for token in self._tokens:
             token.undeclare()
         self._tokens.clear()
+        self._publishers.close()
 
     # --- pub/sub --------------------------------------------------------------------------
 
     def publish(self, key: str, msg: Any, qos: Qos | None = None) -> None:
-        """Encode and put ``msg`` on ``key`` with its kind's QoS (bus.qos) unless given."""
+        """Encode and put ``msg`` on ``key`` with its kind's QoS (bus.qos) unless given; a
+        key of a recoverable family goes through its advanced publisher (bus.recovery)."""
         chosen = qos or qos_for(type(msg))
         payload = encode(msg, max_size=self.max_payload)
+        depth = RECOVERABLE.get(keys.kind_of(key), 0)
 
         def put() -> None:
+            if depth:
+                self._publishers.put(key, payload, chosen, depth)
+                return
             self.session.put(key, payload, priority=chosen.priority,
                              congestion_control=chosen.congestion, express=chosen.express)
 
@@ -270,12 +285,24 @@ class Bus:
             _log.debug("a delayed message was lost: the session closed")
 
     def subscribe(self, key: str, expected: Expected[M], handler: Callable[[str, M], None]
-                  | None = None, policy: Policy | None = None) -> Subscription[M]:
-        """Subscribe to ``key`` (wildcards allowed); see Subscription."""
+                  | None = None, policy: Policy | None = None, *, recover: bool = False,
+                  on_miss: Callable[[str | None, int, float | None], None] | None = None,
+                  ) -> Subscription[M]:
+        """Subscribe to ``key`` (wildcards allowed); see Subscription. With ``recover`` (or
+        ``on_miss``) the subscription recovers what it missed from the publishers' caches
+        (bus.recovery); each sample no cache held any more is counted as a drop ("missed")
+        and reported to ``on_miss(key, count, last heard)`` on the loop (key and
+        time.monotonic() of the source's last sample, None if it was never heard)."""
         sub: Subscription[M] = Subscription(self, key, expected, policy or BoundedFifo(),
                                             handler)
-        sub._zenoh = self.session.declare_subscriber(
-            key, zenoh.handlers.Callback(sub._on_sample, indirect=False))
+        if not recover and on_miss is None:
+            sub._zenoh = self.session.declare_subscriber(
+                key, zenoh.handlers.Callback(sub._on_sample, indirect=False))
+        else:
+            report = MissReport(key, self.drops, self.loop, on_miss)
+            sub.sources = report.sources
+            sub._zenoh, sub._miss_listener = declare_recovering_subscriber(
+                self.session, key, sub._on_sample, report)
         self._closables.append(sub)
         return sub
 

@@ -20,9 +20,9 @@ class DropCounter:
         self._lock = threading.Lock()
         self._log = logger or _log
 
-    def count(self, key_kind: str, reason: str, detail: str = "") -> None:
+    def count(self, key_kind: str, reason: str, detail: str = "", n: int = 1) -> None:
         with self._lock:
-            self._counts[(key_kind, reason)] += 1
+            self._counts[(key_kind, reason)] += n
             first = key_kind not in self._logged
             self._logged.add(key_kind)
         if first:

@@ -147,9 +147,11 @@ class Launcher:
 
     def subscribe(self, bus: Bus) -> None:
         """Every message of the mission, in order: all of them feed the model the summary's
-        figures are read from (as a monitor's would), some also the supervision."""
+        figures are read from (as a monitor's would), some also the supervision; recovered
+        from the publishers' caches after a router restart or freeze (bus.recovery), so the
+        summary's ground truth has no hole."""
         bus.subscribe(keys.everything(self.mission), tuple(MESSAGE_TYPES.values()),
-                      self._on_message, BoundedFifo(SUB_BUFFER))
+                      self._on_message, BoundedFifo(SUB_BUFFER), recover=True)
 
     def _on_message(self, key: str, msg: object) -> None:
         t = self.tracker

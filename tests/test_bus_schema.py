@@ -172,6 +172,19 @@ def test_every_qos_class_has_zenoh_settings() -> None:
     assert qos.qos_for(int) is qos.DEFAULT
 
 
+def test_recoverable_families_are_those_with_a_cache_and_state_that_matters() -> None:
+    from bus.messages.schema import FAMILIES, RECOVERABLE
+
+    assert {f.label: f.cache for f in FAMILIES if f.cache} == RECOVERABLE
+    # starts, plan digests, progress and cover events, edges, claims, completions, deaths
+    for label in ("status", "progress", "sim/cover", "look", "event", "death", "mission",
+                  "ormstc/tree", "ormstc/claim", "ormstc/start", "ormstc/done"):
+        assert RECOVERABLE[label] > 0, label
+    # superseded at once, or not samples at all
+    for label in ("hb", "sim/pose", "sim/world", "state", "hw/cmd", "alive"):
+        assert label not in RECOVERABLE, label
+
+
 def test_family_labels_drop_the_id_chunks_unless_given() -> None:
     assert family("hw/{robot}/cmd") == KeyFamily("hw/cmd", "hw/{robot}/cmd")
     assert family("tree/robot/{robot}/inbox", "tree/inbox").label == "tree/inbox"

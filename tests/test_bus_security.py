@@ -110,6 +110,19 @@ def test_grants_follow_the_schema_access_column() -> None:
     assert all(key.startswith(f"mstc/{MISSION}/") for key in written)
 
 
+def test_advanced_publishers_are_allowed_where_their_family_is() -> None:
+    r3, sim = acl.grants(robot(3), MISSION), acl.grants(SIMHW, MISSION)
+    assert keys.progress(MISSION, 3) in r3["cache"]
+    assert f"{keys.progress(MISSION, 3)}/@adv/**" in r3["advanced"]
+    assert keys.heartbeat(MISSION, 3) not in r3["cache"]  # heartbeats are not recoverable
+    assert all("/3" in key or "/*" in key or key.endswith("/mission") for key in r3["cache"])
+    assert f"{keys.sim_cover(MISSION, 0).replace('/0', '/*')}/@adv/**" in sim["advanced"]
+    assert "advanced" not in acl.grants(OBSERVER, MISSION)
+    rules = {rule["id"]: rule for rule in acl.access_control(MISSION, [OBSERVER])["rules"]}
+    assert rules["recover"]["key_exprs"] == [f"mstc/{MISSION}/**/@adv/**"]
+    assert "put" not in rules["recover"]["messages"]
+
+
 def test_a_message_about_another_robot_than_its_key_is_dropped_and_counted() -> None:
     bus = Bus(cast(Any, None), MISSION)
     forged = encode(Heartbeat(5, 1, 1, None, "running", 0.0))

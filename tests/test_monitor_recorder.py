@@ -31,7 +31,7 @@ from deploy.monitor.recorder import (
     read_recording,
     record_line,
 )
-from deploy.monitor.types import Header, Opaque, Record
+from deploy.monitor.types import Gap, Header, Opaque, Record
 
 HEADER = Header(M, 1_700_000_000.0, "test", SCHEMA_VERSION)
 
@@ -60,6 +60,10 @@ def samples() -> list[Record]:
                                                  ((1, 1),)), "query"),
         Record(1.0, keys.state(M, 3), Opaque("future_kind", {"robot": 2, "covered": b"\x01",
                                                              "dead": [1]}), "query"),
+        Record(1.1, keys.sim_cover(M, 1), Gap(keys.sim_cover(M, 1), "sim/cover", 12, 0.25,
+                                              1.1), "gap"),
+        Record(1.2, keys.everything(M), Gap(keys.everything(M), "unknown", 1, None, 1.2),
+               "gap"),
     ]
 
 
@@ -77,6 +81,18 @@ def test_every_scripted_record_round_trips(tmp_path: Path) -> None:
             assert got.msg.fields["covered"] == b"\x01" and list(got.msg.fields["dead"]) == [1]
         else:
             assert got.msg == sent.msg
+
+
+@pytest.mark.parametrize("fields", [
+    {"key": "k", "family": "f", "missed": 0, "since": None, "until": 1.0},
+    {"key": "k", "family": "f", "missed": 2, "since": "x", "until": 1.0},
+    {"key": "k", "family": "f", "missed": 2, "since": None},
+    {"key": "k", "family": "f", "missed": 2, "since": None, "until": 1.0, "more": 1},
+])
+def test_malformed_gap_records_are_refused(fields: dict[str, object]) -> None:
+    line = json.dumps({"t": 1.0, "key": "k", "via": "gap", "kind": "gap", "msg": fields})
+    with pytest.raises(DecodeError, match="gap needs"):
+        parse_line(line)
 
 
 def test_lines_are_strict_json(tmp_path: Path) -> None:

@@ -100,7 +100,7 @@ def test_json_is_stable(tmp_path: Path) -> None:
         "complete", "coverage_moves", "coverage_sim_seconds", "coverage_wall_seconds",
         "sim_seconds", "revisits", "revisited_cells", "look_steps", "look_step_share",
         "closing_reentries", "coverage_revisits", "robots", "deaths", "conflicts",
-        "messages", "malformed_lines", "invariants", "ok", "curve"}
+        "messages", "malformed_lines", "invariants", "ok", "curve", "gaps"}
     assert json.loads(json.dumps(data)) == data
 
 
@@ -177,3 +177,37 @@ def test_the_text_report_says_how_many_revisited_sub_cells_it_leaves_out() -> No
     assert "  ... and 22 more revisited sub-cells (all of them in --json)" in text
     few = report_of(run_mission(room, two_robot_walks()).records)
     assert "more revisited" not in format_report(few)
+
+
+def test_a_gap_in_the_recording_is_named_and_explains_what_it_lost() -> None:
+    from bus import keys
+    from bus.messages import CoverEvent, WorldState
+    from deploy.monitor.types import Gap
+
+    records = run_mission(open_room(), two_robot_walks()).records
+    covers = [i for i, r in enumerate(records) if isinstance(r.msg, CoverEvent)
+              and r.msg.robot == 1]
+    lost = set(covers[3:6])
+    last_world = max(i for i, r in enumerate(records) if isinstance(r.msg, WorldState))
+    cut = [r for i, r in enumerate(records) if i not in lost and i != last_world]
+    failed = report_of(cut)
+    assert statuses(failed)["every move 4-adjacent"] == "failed"
+    assert statuses(failed)["every reachable free sub-cell covered"] == "failed"
+
+    since, until = records[covers[2]].t, records[covers[6]].t
+    gap = Record(until, keys.sim_cover(M, 1), Gap(keys.sim_cover(M, 1), "sim/cover", 3,
+                                                  since, until), "gap")
+    report = report_of([*cut, gap])
+    assert report.ok, report.invariants
+    assert report.gaps == (gap.msg,)
+    assert statuses(report)["every move 4-adjacent"] == "ok"
+    assert statuses(report)["every reachable free sub-cell covered"] == "skipped"
+    text = format_report(report)
+    assert f"gap in the recording: {keys.sim_cover(M, 1)} {since:.2f} s to {until:.2f} s " \
+           f"(3 lost)" in text
+    assert report.to_json()["gaps"] == [{"key": keys.sim_cover(M, 1), "family": "sim/cover",
+                                         "missed": 3, "since": since, "until": until}]
+    # a gap in another robot's ground truth explains nothing about this one's walk
+    other = Record(until, keys.sim_cover(M, 0), Gap(keys.sim_cover(M, 0), "sim/cover", 3,
+                                                    since, until), "gap")
+    assert statuses(report_of([*cut, other]))["every move 4-adjacent"] == "failed"

@@ -107,7 +107,10 @@ class OrmstcAgent(BodyAgent):
         self.inbound = Inbound(self.robot, c.k, bus.drops)
         self.liveness = self._make_liveness(bus, self._on_death, self._heartbeat_info)
         self.announcer = self._make_announcer(bus, self.state_message)
-        bus.subscribe(keys.all_ormstc(m), WIRE_TYPES, self._on_ormstc, BoundedFifo(65536))
+        # Each claim, edge and completion is said once: recovered from the senders' caches
+        # after a router restart or freeze instead of waiting for a silence (bus.recovery).
+        bus.subscribe(keys.all_ormstc(m), WIRE_TYPES, self._on_ormstc, BoundedFifo(65536),
+                      recover=True)
         bus.subscribe(keys.all_statuses(m), RobotStatus, self._on_status, LatestWins())
         bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
 

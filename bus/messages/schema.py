@@ -92,12 +92,16 @@ class KeyFamily:
     """Keys ``mstc/<mission>/<path>``; ``{robot}`` and ``{incarnation}`` chunks of ``path``
     are non-negative ints. ``label`` is the kind keys.parse reports (drop counters, logs).
     ``robot_field``: the field of a kind listed on this family that must equal the key's
-    ``{robot}`` (None where the key names a receiver that no field names)."""
+    ``{robot}`` (None where the key names a receiver that no field names).
+    ``cache``: how many samples per key its publishers keep for subscribers that missed
+    them (bus.recovery: Zenoh's advanced pub/sub); 0 where a lost sample is superseded by
+    the next one or means nothing later (heartbeats, poses, queries)."""
 
     label: str
     path: str
     access: Access = NOBODY
     robot_field: str | None = "robot"
+    cache: int = 0
 
     @functools.cached_property
     def chunks(self) -> tuple[str, ...]:
@@ -105,10 +109,10 @@ class KeyFamily:
 
 
 def family(path: str, label: str | None = None, access: Access = NOBODY, *,
-           robot_field: str | None = "robot") -> KeyFamily:
+           robot_field: str | None = "robot", cache: int = 0) -> KeyFamily:
     """A key family; its label is its path without the id chunks unless given."""
     return KeyFamily(label or "/".join(c for c in path.split("/") if c not in _ID_CHUNKS),
-                     path, access, robot_field)
+                     path, access, robot_field, cache)
 
 
 @dataclass(frozen=True)
@@ -133,25 +137,36 @@ HW_CMD = family("hw/{robot}/cmd", access=Access(serve=(SIMHW,), ask=(OWN,)))
 # queryable (simhw): AdminCommand -> AdminReply; failure injection is the operator's alone
 HW_ADMIN = family("hw/admin", access=Access(serve=(SIMHW,), ask=(OPERATOR,)))
 
+# Publisher cache depths (samples per key) of the recoverable families: enough for a router
+# restart or freeze of a few seconds at the fastest move rate measured (time scale 0, ~100
+# moves/s per robot); a cut longer than that is marked as a gap in a recording.
+STATE_CACHE = 16  # statuses, verdicts, deaths, re-plan reports: a few per life
+EVENT_CACHE = 256  # events, bumps, ORMSTC starts, connections, completions
+WALK_CACHE = 4096  # one sample per move: cover events, progress, look steps, edges, claims
+
 KINDS: tuple[Kind, ...] = (
     # a robot's life (bus.messages.lifecycle)
     Kind(Heartbeat, (family("hb/{robot}", access=BY_OWN),), C.HEARTBEAT),
-    Kind(RobotStatus, (family("status/{robot}", access=BY_OWN),), C.CRITICAL, since=4),
-    Kind(RobotEvent, (family("event/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(RobotStatus, (family("status/{robot}", access=BY_OWN, cache=STATE_CACHE),),
+         C.CRITICAL, since=4),
+    Kind(RobotEvent, (family("event/{robot}", access=BY_OWN, cache=EVENT_CACHE),), C.CRITICAL),
     # <robot>: the dead one; any robot may declare a death (bus.liveness checks the detector)
-    Kind(DeathNotice, (family("death/{robot}", access=Access(put=(ROBOTS,))),), C.CRITICAL),
+    Kind(DeathNotice, (family("death/{robot}", access=Access(put=(ROBOTS,)),
+                                cache=STATE_CACHE),), C.CRITICAL),
     # the verdict is the robots'; a tree fleet's launcher announces its set-up on it too
-    Kind(MissionStatus, (family("mission", access=Access(put=(ROBOTS, OPERATOR))),
+    Kind(MissionStatus, (family("mission", access=Access(put=(ROBOTS, OPERATOR)),
+                                cache=STATE_CACHE),
                          family("state/mission", access=SERVED_BY_ROBOTS)), C.CRITICAL),
     # what a robot covered (bus.messages.progress)
-    Kind(Progress, (family("progress/{robot}", access=BY_OWN),), C.STREAM),
+    Kind(Progress, (family("progress/{robot}", access=BY_OWN, cache=WALK_CACHE),), C.STREAM),
     # a lost look step would make a report see a coverage revisit
-    Kind(LookStep, (family("look/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(LookStep, (family("look/{robot}", access=BY_OWN, cache=WALK_CACHE),), C.CRITICAL),
     # only the reply of the state/<r> queryable, which also answers the robot's kept messages
     Kind(AgentState, (family("state/{robot}", access=Access(serve=(OWN,), ask=(EVERYONE,))),),
          C.STREAM, since=2),
     # a survivor's input to the re-plan after a death: the others wait for it
-    Kind(ReplanReport, (family("replan/{robot}", access=BY_OWN),), C.CRITICAL, since=3),
+    Kind(ReplanReport, (family("replan/{robot}", access=BY_OWN, cache=STATE_CACHE),),
+         C.CRITICAL, since=3),
     # the simulated hardware (bus.messages.hardware)
     Kind(HwCommand, (HW_CMD,), C.CONTROL),
     Kind(HwReply, (HW_CMD,), C.CONTROL),
@@ -159,19 +174,27 @@ KINDS: tuple[Kind, ...] = (
     Kind(AdminReply, (HW_ADMIN,), C.CONTROL),
     # the simulator's ground truth (bus.messages.world)
     Kind(GroundTruthPose, (family("sim/pose/{robot}", access=BY_SIMHW),), C.STREAM),
-    Kind(CoverEvent, (family("sim/cover/{robot}", access=BY_SIMHW),), C.STREAM),
-    Kind(BumpEvent, (family("sim/bump/{robot}", access=BY_SIMHW),), C.STREAM),
+    Kind(CoverEvent, (family("sim/cover/{robot}", access=BY_SIMHW, cache=WALK_CACHE),),
+         C.STREAM),
+    Kind(BumpEvent, (family("sim/bump/{robot}", access=BY_SIMHW, cache=EVENT_CACHE),), C.STREAM),
     Kind(WorldState, (family("sim/world", access=Access(serve=(SIMHW,), ask=(EVERYONE,))),),
          C.BULK, since=2),
     # ORMSTC (bus.messages.ormstc): one priority for every ORMSTC kind keeps each sender's
     # messages in order across keys; <robot> is the sender
-    Kind(OrmstcTreeEdge, (family("ormstc/tree/{robot}", access=BY_OWN),), C.CRITICAL),
-    Kind(OrmstcClaim, (family("ormstc/claim/{robot}", access=BY_OWN),), C.CRITICAL),
-    Kind(OrmstcConnection, (family("ormstc/conn/{robot}", access=BY_OWN),), C.CRITICAL),
-    Kind(OrmstcStart, (family("ormstc/start/{robot}", access=BY_OWN),), C.CRITICAL),
-    Kind(OrmstcDeadRobot, (family("ormstc/dead/{robot}", access=BY_OWN),), C.CRITICAL),
-    Kind(OrmstcCompletion, (family("ormstc/done/{robot}", access=BY_OWN),), C.CRITICAL),
-    Kind(OrmstcWithdrawal, (family("ormstc/withdraw/{robot}", access=BY_OWN),), C.CRITICAL),
+    Kind(OrmstcTreeEdge, (family("ormstc/tree/{robot}", access=BY_OWN, cache=WALK_CACHE),),
+         C.CRITICAL),
+    Kind(OrmstcClaim, (family("ormstc/claim/{robot}", access=BY_OWN, cache=WALK_CACHE),),
+         C.CRITICAL),
+    Kind(OrmstcConnection, (family("ormstc/conn/{robot}", access=BY_OWN, cache=EVENT_CACHE),),
+         C.CRITICAL),
+    Kind(OrmstcStart, (family("ormstc/start/{robot}", access=BY_OWN, cache=EVENT_CACHE),),
+         C.CRITICAL),
+    Kind(OrmstcDeadRobot, (family("ormstc/dead/{robot}", access=BY_OWN, cache=EVENT_CACHE),),
+         C.CRITICAL),
+    Kind(OrmstcCompletion, (family("ormstc/done/{robot}", access=BY_OWN, cache=EVENT_CACHE),),
+         C.CRITICAL),
+    Kind(OrmstcWithdrawal, (family("ormstc/withdraw/{robot}", access=BY_OWN, cache=EVENT_CACHE),),
+         C.CRITICAL),
     # connected tree coverage (bus.messages.tree): a lost report stalls the whole team's
     # step, so never drop it; the outbox is the robot's, only the radio fills inboxes
     # (an outbox carries relayed reports too: its robot is the sender)
@@ -231,6 +254,8 @@ def _registry() -> dict[str, type[Any]]:
 
 
 FAMILIES: tuple[KeyFamily, ...] = _families()
+# key label -> publisher cache depth, for the families whose lost samples can be recovered
+RECOVERABLE: dict[str, int] = {fam.label: fam.cache for fam in FAMILIES if fam.cache > 0}
 MESSAGE_TYPES: dict[str, type[Any]] = _registry()  # KIND -> class
 KIND_SINCE: dict[str, int] = {kind.name: kind.since for kind in KINDS}
 RECORD_TYPES: frozenset[type[Any]] = frozenset(RECORDS)

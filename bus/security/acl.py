@@ -3,7 +3,10 @@
 
 Every authenticated role may subscribe to, query the liveliness of, and receive everything of
 its mission; writing (put, serving a queryable and replying, querying, liveliness tokens) is
-allowed exactly where the schema names the role. Everything else is denied, and so is every
+allowed exactly where the schema names the role. Where a role may put on a recoverable family,
+it may also run that family's advanced publishers (bus.recovery: a cache queryable, a
+detection token and heartbeats under each key's ``@adv`` chunk), and every role may query
+those caches to recover what it missed. Everything else is denied, and so is every
 key outside ``mstc/<mission>/`` (the admin space included). Zenoh's ACL only sees the
 transport a message came in on, so it cannot tell what a robot says inside its own keys:
 bus.bridge and bus.liveness check that.
@@ -17,6 +20,7 @@ from typing import Any
 
 from bus import keys
 from bus.messages.schema import ALIVE, FAMILIES, Audience, KeyFamily
+from bus.recovery import advanced_keys
 from bus.security.credentials import Credentials
 from bus.security.roles import Role
 
@@ -29,7 +33,13 @@ _VERBS: dict[str, tuple[str, ...]] = {
     "serve": ("declare_queryable", "reply"),
     "ask": ("query",),
     "token": ("liveliness_token",),
+    # an advanced publisher's own keys: heartbeats, its cache queryable, its detection token
+    "advanced": ("put", "declare_queryable", "reply", "liveliness_token"),
+    # its cache answers with the samples as they were put: on the family's own keys
+    "cache": ("reply",),
 }
+# What a recovering subscriber does on the advanced keys besides reading: ask the caches.
+_RECOVER_IN = (*_READ_IN, "query")
 
 
 def _covers(audience: Audience, role: Role) -> bool:
@@ -40,10 +50,12 @@ def _covers(audience: Audience, role: Role) -> bool:
 
 def grants(role: Role, mission: str,
            families: Iterable[KeyFamily] = (*FAMILIES, ALIVE)) -> dict[str, list[str]]:
-    """Verb -> key expressions ``role`` may use it on (verbs: put, serve, ask, token)."""
+    """Verb -> key expressions ``role`` may use it on (verbs: put, serve, ask, token, and
+    advanced and cache: the advanced publishers of the recoverable families it may put
+    on)."""
     out: dict[str, list[str]] = {verb: [] for verb in _VERBS}
     for fam in families:
-        for verb in _VERBS:
+        for verb in ("put", "serve", "ask", "token"):
             audiences: tuple[Audience, ...] = getattr(fam.access, verb)
             for audience in audiences:
                 if _covers(audience, role):
@@ -51,6 +63,9 @@ def grants(role: Role, mission: str,
                     key = keys.of_robot(fam.label, mission, robot)
                     if key not in out[verb]:
                         out[verb].append(key)
+                    if verb == "put" and fam.cache > 0 and key not in out["cache"]:
+                        out["cache"].append(key)
+                        out["advanced"].append(advanced_keys(key))
     return {verb: found for verb, found in out.items() if found}
 
 
@@ -62,8 +77,10 @@ def access_control(mission: str, roles: Iterable[Role], *,
     rules: list[dict[str, Any]] = [
         {"id": "read", "messages": list(_READ_IN), "flows": ["ingress"],
          "permission": "allow", "key_exprs": [everything]},
+        {"id": "recover", "messages": list(_RECOVER_IN), "flows": ["ingress"],
+         "permission": "allow", "key_exprs": [advanced_keys(everything)]},
         {"id": "receive", "messages": list(_ALL), "flows": ["egress"],
-         "permission": "allow", "key_exprs": [everything]},
+         "permission": "allow", "key_exprs": [everything, advanced_keys(everything)]},
     ]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
@@ -83,7 +100,8 @@ def access_control(mission: str, roles: Iterable[Role], *,
             own_rules.append(rule_id)
         if own_rules:
             policies.append({"id": role.name, "rules": own_rules, "subjects": [role.name]})
-    policies.append({"id": "readers", "rules": ["read", "receive"], "subjects": names})
+    policies.append({"id": "readers", "rules": ["read", "recover", "receive"],
+                     "subjects": names})
     return {"enabled": True, "default_permission": "deny", "rules": rules,
             "subjects": subjects, "policies": policies}
 

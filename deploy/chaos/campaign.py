@@ -51,12 +51,13 @@ def not_injected(outcome: Outcome) -> bool:
 
 
 def table(outcomes: list[Outcome]) -> str:
-    """Per scenario and in all: trials, missions lost, recordings with gaps, double work,
-    false suspicions, the makespan against the fault-free plan (median ratio) and trials whose
-    faults fell after the mission had ended."""
+    """Per scenario and in all: trials, missions lost, recordings failing an invariant
+    although the mission completed (gaps), double work, recordings holding gap records
+    (what the recorder could not recover), false suspicions, the makespan against the
+    fault-free plan (median ratio) and trials whose faults fell after the mission had ended."""
     rows: list[tuple[str, ...]] = [
-        ("scenario", "trials", "lost", "gaps", "double", "false susp.", "makespan/plan",
-         "late faults")]
+        ("scenario", "trials", "lost", "gaps", "double", "gap records", "false susp.",
+         "makespan/plan", "late faults")]
     by_scenario: dict[str, list[Outcome]] = {}
     by_algo: dict[str, list[Outcome]] = {}
     for o in outcomes:
@@ -67,6 +68,7 @@ def table(outcomes: list[Outcome]) -> str:
         ratios = [o.makespan / o.planned for o in group if o.complete and o.planned]
         rows.append((name, str(len(group)),
                      *(str(sum(o.verdict == v for o in group)) for v in VERDICTS[1:]),
+                     str(sum(bool(o.recording_gaps) for o in group)),
                      str(sum(len(o.false_suspicions) for o in group)),
                      f"{statistics.median(ratios):.2f}" if ratios else "-",
                      str(sum(not_injected(o) for o in group))))

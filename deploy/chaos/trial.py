@@ -4,9 +4,10 @@ verdict from simhw's ground truth (summary.json) and from the recording (``mstc 
 
 Verdicts: ``ok``; ``lost`` (ground truth: the mission did not cover everything although a
 robot was left); ``gap`` (the mission completed but its recording says otherwise: data lost
-on the way, not a failure); ``double`` (a cell owned by two live robots, or a revisit the
-algorithm promises not to make, in the recording); ``false-suspicion`` counts robots
-declared dead that no fault was meant to kill.
+on the way, not a failure: what the recorder could not recover is a gap record instead, and
+the report fails nothing on it; ``recording_gaps`` lists those records); ``double`` (a
+cell owned by two live robots, or a revisit the algorithm promises not to make, in the
+recording); ``false-suspicion`` counts robots declared dead that no fault was meant to kill.
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ class Outcome:
     robots_lost: list[int] = field(default_factory=list)
     false_suspicions: list[int] = field(default_factory=list)
     report_failures: list[str] = field(default_factory=list)
+    recording_gaps: list[str] = field(default_factory=list)
     injected: list[str] = field(default_factory=list)
     exit_code: int | None = None
 
@@ -144,10 +146,14 @@ def judge(trial: Trial, workdir: Path, code: int | None, wall: float,
     report = subprocess.run(mstc_argv("report", "--json", str(workdir / "recording.jsonl")),
                             capture_output=True, text=True, check=False)
     try:
-        invariants = json.loads(report.stdout)["invariants"]
+        judged = json.loads(report.stdout)
+        invariants = judged["invariants"]
     except (ValueError, KeyError):
+        judged = {}
         invariants = [{"name": "recording readable", "status": "failed",
                        "detail": report.stderr.strip()[-300:]}]
+    outcome.recording_gaps = [f"{g['key']} {g['since']}..{g['until']} s ({g['missed']} lost)"
+                              for g in judged.get("gaps", ())]
     outcome.report_failures = [f"{inv['name']}: {inv['detail']}" for inv in invariants
                                if inv["status"] == "failed"]
     if not outcome.complete:

@@ -8,6 +8,11 @@ visitors and crossers, bodies) at start and then every ``world_period`` seconds.
 replies are decoded here from the raw payload, so that a kind this process does not know
 (a newer peer's) is kept as an Opaque instead of being counted as a drop. Every kind it
 needs is in bus.messages: the monitor imports no agent or simhw code.
+
+The mission subscription recovers (bus.recovery): after a router restart or freeze the
+publishers' caches give back what was missed, in order; what no cache holds any more is
+recorded as a Gap record naming the key and the interval, so a report can tell lost data
+from a failed mission.
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ from bus.bridge import BoundedFifo, Bus
 from bus.errors import DecodeError
 from bus.messages import MESSAGE_TYPES, WorldState
 from deploy.monitor.recorder import decode_payload
-from deploy.monitor.types import Record, TokenChange
+from deploy.monitor.types import Gap, Record, TokenChange
 from deploy.monitor.view import FeedStats
 
 QUERY_TIMEOUT_S = 2.0
@@ -48,7 +53,7 @@ class LiveFeed:
         """Subscribe to every key of the mission and watch the robots' tokens."""
         m = self.bus.mission
         self.bus.subscribe(keys.everything(m), tuple(MESSAGE_TYPES.values()), self._on_msg,
-                           BoundedFifo(SUB_BUFFER))
+                           BoundedFifo(SUB_BUFFER), on_miss=self._on_miss)
         self.bus.watch_liveliness(keys.all_alive(m), lambda k: self._on_token(k, True),
                                   lambda k: self._on_token(k, False))
 
@@ -58,6 +63,14 @@ class LiveFeed:
 
     def _on_msg(self, key: str, msg: object) -> None:
         self._push(Record(self.clock() - self.t0, key, msg, "sub"))
+
+    def _on_miss(self, key: str | None, missed: int, last_heard: float | None) -> None:
+        where = key or keys.everything(self.bus.mission)
+        parsed = keys.parse(where)
+        self._push(Record(self.clock() - self.t0, where, Gap(
+            where, "unknown" if parsed is None else parsed.kind, missed,
+            None if last_heard is None else last_heard - self.t0, self.clock() - self.t0),
+            "gap"))
 
     def _on_token(self, key: str, present: bool) -> None:
         parsed = keys.parse(key)

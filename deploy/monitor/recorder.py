@@ -24,11 +24,11 @@ from bus.codec import KIND_FIELD, VERSION_FIELD, decode, decode_any
 from bus.errors import DecodeError
 from bus.messages import MESSAGE_TYPES, SCHEMA_VERSION, version_problem
 from deploy.errors import RecordingError
-from deploy.monitor.types import Header, LineError, Opaque, Record, Recording, TokenChange
+from deploy.monitor.types import Gap, Header, LineError, Opaque, Record, Recording, TokenChange
 
 SCHEMA = "mstc-record"
 VERSION = 1
-VIAS = ("sub", "query", "token")
+VIAS = ("sub", "query", "token", "gap")
 # Recorded lines are re-checked with the codec; a WorldState of a big map exceeds the
 # wire's 64 KiB default only in its JSON form, never on the wire, but be generous.
 _MAX_PAYLOAD = 16 * 1024 * 1024
@@ -107,11 +107,30 @@ def _message(kind: str, fields: dict[str, Any], wire_version: int) -> Any:
             raise DecodeError("token needs exactly robot (int), incarnation (int), "
                               "present (bool)")
         return TokenChange(robot, inc, present)
+    if kind == Gap.KIND:
+        return _gap(fields)
     cls = MESSAGE_TYPES.get(kind)
     if cls is None:
         return Opaque(kind, fields)
     wire = {KIND_FIELD: kind, VERSION_FIELD: wire_version, **fields}
     return decode(msgpack.packb(wire, use_bin_type=True), cls, max_size=_MAX_PAYLOAD)
+
+
+def _gap(fields: dict[str, Any]) -> Gap:
+    key, fam, missed, since, until = (fields.get(n) for n in (
+        "key", "family", "missed", "since", "until"))
+    if not isinstance(key, str) or not isinstance(fam, str) or type(missed) is not int \
+            or missed < 1 or not _number(until) or not (since is None or _number(since)) \
+            or len(fields) != 5:
+        raise DecodeError("gap needs exactly key (str), family (str), missed (int >= 1), "
+                          "since (number or null), until (number)")
+    assert isinstance(until, (int, float))  # checked by _number
+    return Gap(key, fam, missed, None if since is None else float(since), float(until))
+
+
+def _number(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, float)) \
+        and math.isfinite(value)
 
 
 def parse_line(text: str, wire_version: int = SCHEMA_VERSION) -> Record:

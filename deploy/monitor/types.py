@@ -9,7 +9,7 @@ from typing import Any, Literal
 from bus.messages import DeathNotice
 from planner.geometry import SubCell
 
-Via = Literal["sub", "query", "token"]
+Via = Literal["sub", "query", "token", "gap"]
 
 EventKind = Literal[
     "joined", "state", "claimed", "conflict_lost", "tree_edge", "died", "detected_dead",
@@ -36,6 +36,21 @@ class TokenChange:
     present: bool
 
     KIND = "token"
+
+
+@dataclass(frozen=True)
+class Gap:
+    """Samples on ``key`` (of the family ``family``) the recorder missed and no publisher's
+    cache could give back: ``missed`` of them, after the last one heard at ``since`` (None:
+    none heard before) and before ``until`` (recording seconds, as Record.t)."""
+
+    key: str
+    family: str
+    missed: int
+    since: float | None
+    until: float
+
+    KIND = "gap"
 
 
 @dataclass(frozen=True)
