@@ -30,6 +30,7 @@ from bus.config import ConnectionSettings, open_session_async
 from bus.drops import DropCounter
 from bus.errors import BusClosedError, DecodeError
 from bus.faults import MessageFaults
+from bus.handles import LivelinessWatch, QueryableHandle, Responder
 from bus.inbox import BoundedFifo, Inbox, LatestWins, Policy, Received
 from bus.messages.schema import RECOVERABLE, ROBOT_NAMED
 from bus.qos import DEFAULT as DEFAULT_QOS
@@ -127,69 +128,6 @@ class Subscription(Generic[M]):
         if self._miss_listener is not None:
             self._miss_listener.undeclare()
             self._miss_listener = None
-        if self._zenoh is not None:
-            self._zenoh.undeclare()
-            self._zenoh = None
-
-
-class LivelinessWatch:
-    """Calls ``on_put(key)`` / ``on_delete(key)`` on the loop for matching tokens, starting
-    with the tokens that already exist (Zenoh's liveliness history)."""
-
-    def __init__(self, bus: Bus, key: str, on_put: Callable[[str], None],
-                 on_delete: Callable[[str], None]) -> None:
-        self.key = key
-        self._on_put = on_put
-        self._on_delete = on_delete
-        self._inbox: Inbox[bool] = Inbox(
-            bus.loop, BoundedFifo(65536), self._on_wake,
-            lambda k: bus.drops.count(keys.kind_of(k), "overflow", "liveliness backlog"))
-        self._zenoh: zenoh.Subscriber[None] | None = None
-
-    def _on_sample(self, sample: zenoh.Sample) -> None:
-        self._inbox.push(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
-
-    def _on_wake(self) -> None:
-        while (item := self._inbox.pop()) is not None:
-            key, is_put = item
-            try:
-                (self._on_put if is_put else self._on_delete)(key)
-            except Exception:  # noqa: BLE001 - one bad callback must not hide later changes
-                _log.exception("liveliness callback failed for %s", key)
-
-    def close(self) -> None:
-        self._inbox.close()
-        if self._zenoh is not None:
-            self._zenoh.undeclare()
-            self._zenoh = None
-
-
-Responder = Callable[[Any], Any]
-
-
-class QueryableHandle:
-    """A declared queryable; replies are computed on the loop by the responder."""
-
-    def __init__(self, bus: Bus, key: str, responder: Responder,
-                 request_type: Expected[Any] | None, max_queue: int) -> None:
-        self.key = key
-        self._bus = bus
-        self._responder = responder
-        self._request_type = request_type
-        self._inbox: Inbox[zenoh.Query] = Inbox(
-            bus.loop, BoundedFifo(max_queue), self._on_wake,
-            lambda k: bus.drops.count(keys.kind_of(k), "overflow", "query backlog"))
-        self._zenoh: zenoh.Queryable[None] | None = None
-
-    def _on_query(self, query: zenoh.Query) -> None:
-        self._inbox.push(str(query.key_expr), query)
-
-    def _on_wake(self) -> None:
-        while (item := self._inbox.pop()) is not None:
-            self._bus.answer(self.key, item[1], self._responder, self._request_type)
-
-    def close(self) -> None:
-        self._inbox.close()
         if self._zenoh is not None:
             self._zenoh.undeclare()
             self._zenoh = None
@@ -382,7 +320,9 @@ class Bus:
         """Serve queries on the concrete ``key``. ``responder(request)`` gets the decoded
         request (None when ``request_type`` is None or the query had no payload) and returns
         a message, a sequence of messages, or an awaitable of either; each is a reply."""
-        handle = QueryableHandle(self, key, responder, request_type, max_queue)
+        handle = QueryableHandle(
+            self.loop, self.drops, key, max_queue,
+            lambda query: self.answer(key, query, responder, request_type))
         handle._zenoh = self.session.declare_queryable(
             key, zenoh.handlers.Callback(handle._on_query, indirect=False))
         self._closables.append(handle)
@@ -448,7 +388,7 @@ class Bus:
     def watch_liveliness(self, key: str, on_put: Callable[[str], None],
                          on_delete: Callable[[str], None]) -> LivelinessWatch:
         """Watch tokens matching ``key``; existing tokens are reported first as puts."""
-        watch = LivelinessWatch(self, key, on_put, on_delete)
+        watch = LivelinessWatch(self.loop, self.drops, key, on_put, on_delete)
         watch._zenoh = self.session.liveliness().declare_subscriber(
             key, zenoh.handlers.Callback(watch._on_sample, indirect=False), history=True)
         self._closables.append(watch)
