@@ -35,7 +35,7 @@ from bus.inbox import BoundedFifo, Inbox, LatestWins, Policy, Received
 from bus.messages.schema import RECOVERABLE, ROBOT_NAMED
 from bus.qos import DEFAULT as DEFAULT_QOS
 from bus.qos import Qos, qos_for
-from bus.recovery import MissedSources, MissReport, Publishers, declare_recovering_subscriber
+from bus.recovery import MissedSources, MissReport, Publishers, declare_recovering
 
 __all__ = ["BoundedFifo", "Bus", "LatestWins", "LivelinessWatch", "Policy",
            "QueryableHandle", "Received", "Subscription"]
@@ -60,8 +60,8 @@ class Subscription(Generic[M]):
         self._inbox: Inbox[bytes] = Inbox(
             bus.loop, policy, self._on_wake,
             lambda k: bus.drops.count(keys.kind_of(k), "overflow", f"buffer full on {k}"))
-        self._zenoh: Any = None  # a zenoh Subscriber or zenoh.ext AdvancedSubscriber
-        self._miss_listener: Any = None
+        # zenoh Subscribers, zenoh.ext AdvancedSubscribers and their miss listeners
+        self._declared: list[Any] = []
         self.sources: MissedSources | None = None  # for a recovering subscription
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
@@ -125,12 +125,9 @@ class Subscription(Generic[M]):
     def close(self) -> None:
         self._inbox.close()
         self._event.set()
-        if self._miss_listener is not None:
-            self._miss_listener.undeclare()
-            self._miss_listener = None
-        if self._zenoh is not None:
-            self._zenoh.undeclare()
-            self._zenoh = None
+        declared, self._declared = self._declared, []
+        for declaration in reversed(declared):  # miss listeners before their subscribers
+            declaration.undeclare()
 
 
 class Bus:
@@ -234,13 +231,13 @@ class Bus:
         sub: Subscription[M] = Subscription(self, key, expected, policy or BoundedFifo(),
                                             handler)
         if not recover and on_miss is None:
-            sub._zenoh = self.session.declare_subscriber(
-                key, zenoh.handlers.Callback(sub._on_sample, indirect=False))
+            sub._declared = [self.session.declare_subscriber(
+                key, zenoh.handlers.Callback(sub._on_sample, indirect=False))]
         else:
             report = MissReport(key, self.drops, self.loop, on_miss)
             sub.sources = report.sources
-            sub._zenoh, sub._miss_listener = declare_recovering_subscriber(
-                self.session, key, sub._on_sample, report)
+            sub._declared = declare_recovering(self.session, key, self.mission,
+                                               sub._on_sample, report)
         self._closables.append(sub)
         return sub
 

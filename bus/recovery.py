@@ -12,6 +12,12 @@ count, never silently.
 The extra keys live under each key's ``@adv`` chunk (``<key>/@adv/pub/<zid>/<eid>/_``: the
 publisher's liveliness token, its cache queryable and its heartbeats); the router's access
 rules allow them where the family itself is allowed (bus.security.acl).
+
+A recovering subscription to a whole mission (``mstc/<m>/**``, recorders and launchers) is an
+advanced subscriber per recoverable family and a plain subscriber for every other key: one
+advanced subscriber on every key lost plain samples of a tree fleet's report flood (a step of
+one robot missing from the recording, its report judged as a failed run), and plain families
+have nothing to recover anyway.
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ import zenoh.ext
 
 from bus import keys
 from bus.drops import DropCounter
+from bus.messages.schema import RECOVERABLE
 from bus.qos import Qos
 
 HEARTBEAT_S = 0.5
@@ -129,3 +136,44 @@ def declare_recovering_subscriber(session: zenoh.Session, key_expr: str,
     listener = subscriber.sample_miss_listener(
         lambda miss: on_miss(str(miss.source), int(miss.nb)))
     return subscriber, listener
+
+
+def declare_recovering(session: zenoh.Session, key_expr: str, mission: str,
+                       on_sample: Callable[[zenoh.Sample], None],
+                       on_miss: Callable[[str, int], None]) -> list[Any]:
+    """The declarations of a recovering subscription to ``key_expr`` (undeclare each): on the
+    whole of ``mission``, advanced subscribers on the recoverable families only and a plain
+    subscriber that passes on every other key; else one advanced subscriber."""
+    if key_expr != keys.everything(mission):
+        return list(declare_recovering_subscriber(session, key_expr, on_sample, on_miss))
+    declared: list[Any] = []
+    for label in sorted(RECOVERABLE):
+        declared += declare_recovering_subscriber(session, keys.wildcard(label, mission),
+                                                  on_sample, on_miss)
+    recoverable = RecoverableKeys()
+
+    def on_plain(sample: zenoh.Sample) -> None:
+        if not recoverable(str(sample.key_expr)):
+            on_sample(sample)
+
+    declared.append(session.declare_subscriber(
+        key_expr, zenoh.handlers.Callback(on_plain, indirect=False)))
+    return declared
+
+
+class RecoverableKeys:
+    """Whether a key belongs to a recoverable family, remembered per key (a mission has few
+    distinct keys; the memory is dropped past MAX_KEYS, which no mission reaches)."""
+
+    MAX_KEYS = 1 << 16
+
+    def __init__(self) -> None:
+        self._known: dict[str, bool] = {}
+
+    def __call__(self, key: str) -> bool:
+        known = self._known.get(key)
+        if known is None:
+            if len(self._known) >= self.MAX_KEYS:
+                self._known.clear()
+            known = self._known[key] = keys.kind_of(key) in RECOVERABLE
+        return known
