@@ -13,6 +13,7 @@ import msgpack
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
+from test_bus_schema import EXAMPLES
 
 from bus import codec, keys
 from bus.bridge import Bus
@@ -28,7 +29,6 @@ from bus.messages import (
     world_visits,
 )
 from bus.messages.schema import ALIVE, FAMILIES, KINDS, MESSAGE_TYPES
-from tests.test_bus_schema import EXAMPLES
 
 FUZZ = settings(max_examples=300, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow])

@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from waiting import wait_until
 
 from bus import keys
 from bus.config import ConnectionSettings
@@ -25,7 +26,6 @@ from deploy.monitor.recorder import read_recording
 from deploy.monitor.report import build_report
 from deploy.monitor.types import Gap, Recording
 from deploy.monitor.view import FeedStats
-from tests.waiting import wait_until
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

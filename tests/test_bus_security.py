@@ -17,6 +17,7 @@ from typing import Any, cast
 
 import pytest
 import zenoh
+from conftest import pick_free_port
 
 from bus import keys
 from bus.bridge import Bus
@@ -29,7 +30,6 @@ from bus.messages.schema import ALIVE, FAMILIES
 from bus.router import start_router_process, stop_process
 from bus.security import acl, credentials
 from bus.security.roles import OBSERVER, OPERATOR, SIMHW, parse_role, robot
-from tests.conftest import pick_free_port
 
 MISSION = "sec"
 ROOT = Path(__file__).resolve().parent.parent

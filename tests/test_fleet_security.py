@@ -14,11 +14,11 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import pick_free_port
 from test_fleet_up import RUN_LIMIT, start_up, up_argv, wait_for_fleet
 
 from bus.security import credentials
 from deploy.fleet import RunDir
-from tests.conftest import pick_free_port
 
 pytestmark = pytest.mark.integration
 
