@@ -51,4 +51,8 @@ def run(args: argparse.Namespace) -> int:
     except BusError as error:
         print(f"mstc router: error: {error}", file=sys.stderr)
         return 1
-    return 0
+    # The session is closed (or given up on after bus.router.CLOSE_TIMEOUT_S): leave without
+    # waiting for Zenoh's runtime threads at interpreter exit, which can hang a router process.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
