@@ -311,6 +311,7 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 
 
 @pytest.mark.integration
+@pytest.mark.slow  # over 10 s: CI runs it, the quick loop does not
 def test_mtls_with_credentials_works_on_loopback_and_refuses_a_wrong_ca(
         certs: tuple[Path, Path], tmp_path: Path) -> None:
     good, wrong = certs

@@ -32,6 +32,7 @@ def attacker(endpoint: str, mission: str, seconds: float,
                             text=True)
 
 
+@pytest.mark.slow  # over 10 s: CI runs it, the quick loop does not
 def test_an_attacked_mission_completes_with_no_robot_lost(tmp_path: Path) -> None:
     port = pick_free_port()
     run_dir = tmp_path / "run"
@@ -90,6 +91,7 @@ def test_up_with_a_credentials_file_of_another_mission_is_refused(tmp_path: Path
     assert time.monotonic() - started < RUN_LIMIT
 
 
+@pytest.mark.slow  # over 10 s: CI runs it, the quick loop does not
 def test_monitor_and_kill_hw_attach_to_a_secure_fleet_with_its_credentials(
         tmp_path: Path) -> None:
     run_dir = tmp_path / "run"

@@ -200,6 +200,7 @@ def _fleet_json(run_dir: Path, proc: subprocess.Popen[str]) -> dict[str, Any]:
     raise AssertionError(f"no fleet.json within {RUN_LIMIT} s")
 
 
+@pytest.mark.slow  # over 10 s: CI runs it, the quick loop does not
 def test_mstc_kill_and_down_act_on_a_tree_fleet(tmp_path: Path) -> None:
     """A tree mission's run directory is a fleet like `mstc up`'s: `mstc kill` removes a robot
     (the survivors finish, judged against the lockstep run with that death), `mstc down` stops
