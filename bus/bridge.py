@@ -32,10 +32,10 @@ from bus.errors import BusClosedError, DecodeError
 from bus.faults import MessageFaults
 from bus.handles import LivelinessWatch, QueryableHandle, Responder
 from bus.inbox import BoundedFifo, Inbox, LatestWins, Policy, Received
-from bus.messages.schema import RECOVERABLE, ROBOT_NAMED
+from bus.messages.schema import ROBOT_NAMED
 from bus.qos import DEFAULT as DEFAULT_QOS
 from bus.qos import Qos, qos_for
-from bus.recovery import MissedSources, MissReport, Publishers, declare_recovering
+from bus.recovery import CacheDepths, MissedSources, MissReport, Publishers, declare_recovering
 
 __all__ = ["BoundedFifo", "Bus", "LatestWins", "LivelinessWatch", "Policy",
            "QueryableHandle", "Received", "Subscription"]
@@ -148,6 +148,7 @@ class Bus:
         self._closables: list[Subscription[Any] | LivelinessWatch | QueryableHandle] = []
         self._tokens: list[zenoh.LivelinessToken] = []
         self._publishers = Publishers(session)
+        self._cache_depth = CacheDepths()
 
     @classmethod
     @asynccontextmanager
@@ -194,7 +195,7 @@ class Bus:
         key of a recoverable family goes through its advanced publisher (bus.recovery)."""
         chosen = qos or qos_for(type(msg))
         payload = encode(msg, max_size=self.max_payload)
-        depth = RECOVERABLE.get(keys.kind_of(key), 0)
+        depth = self._cache_depth(key)
 
         def put() -> None:
             if depth:

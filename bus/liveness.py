@@ -118,11 +118,10 @@ class FailureDetector:
         detector = notice.detected_by
         if detector is None:
             return "no detector"
-        if detector != self.detector and detector not in self._peers \
-                and detector not in self._dead:
+        gone = detector != self.detector and detector not in self._peers  # not alive here
+        if gone and detector not in self._dead:
             return f"detector {detector} is not a known participant"
-        if detector != self.detector and detector not in self._peers \
-                and detector != notice.robot:
+        if gone and detector != notice.robot:  # a robot's own "leaving" stays learnable
             if notice.robot == self.detector:
                 return f"detector {detector} is dead: its verdict on this robot is not " \
                        f"acted on (simhw fences this robot if it really was dead)"

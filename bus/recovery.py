@@ -150,10 +150,10 @@ def declare_recovering(session: zenoh.Session, key_expr: str, mission: str,
     for label in sorted(RECOVERABLE):
         declared += declare_recovering_subscriber(session, keys.wildcard(label, mission),
                                                   on_sample, on_miss)
-    recoverable = RecoverableKeys()
+    depth = CacheDepths()
 
     def on_plain(sample: zenoh.Sample) -> None:
-        if not recoverable(str(sample.key_expr)):
+        if not depth(str(sample.key_expr)):
             on_sample(sample)
 
     declared.append(session.declare_subscriber(
@@ -161,19 +161,20 @@ def declare_recovering(session: zenoh.Session, key_expr: str, mission: str,
     return declared
 
 
-class RecoverableKeys:
-    """Whether a key belongs to a recoverable family, remembered per key (a mission has few
-    distinct keys; the memory is dropped past MAX_KEYS, which no mission reaches)."""
+class CacheDepths:
+    """The publisher cache depth of a key's family (0: not recoverable), remembered per key:
+    publishing parses no key twice (a mission has few distinct keys; the memory is dropped
+    past MAX_KEYS, which no mission reaches)."""
 
     MAX_KEYS = 1 << 16
 
     def __init__(self) -> None:
-        self._known: dict[str, bool] = {}
+        self._known: dict[str, int] = {}
 
-    def __call__(self, key: str) -> bool:
+    def __call__(self, key: str) -> int:
         known = self._known.get(key)
         if known is None:
             if len(self._known) >= self.MAX_KEYS:
                 self._known.clear()
-            known = self._known[key] = keys.kind_of(key) in RECOVERABLE
+            known = self._known[key] = RECOVERABLE.get(keys.kind_of(key), 0)
         return known

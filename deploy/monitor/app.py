@@ -31,8 +31,6 @@ REFRESH_S = 0.25
 WORLD_PERIOD_S = 2.0
 RENDER_SHARE = 5.0
 CONNECT_POLL_S = 0.1
-SETTLE_QUIET_S = 0.3
-SETTLE_LIMIT_S = 3.0
 
 
 class Screen(Protocol):
@@ -229,27 +227,11 @@ async def recorded(main: Awaitable[T], settings: ConnectionSettings, path: Path 
         recorder = group.create_task(watch_live(settings, watcher, stop=stop, record=path,
                                                 record_mcap=mcap, source=source))
         try:
-            result = await main
-            if watcher.connected:
-                await _settled(watcher)
-            return result
+            return await main
         finally:
             stop.set()
             if not watcher.connected:
                 recorder.cancel()
-
-
-async def _settled(watcher: Watcher) -> None:
-    """Until nothing new was recorded for SETTLE_QUIET_S (at most SETTLE_LIMIT_S): the
-    launcher's last words, such as the verdict it published as it returned, are still on
-    their way to the recorder."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + SETTLE_LIMIT_S
-    seen, quiet_since = watcher.model.kinds.total(), loop.time()
-    while loop.time() < end and loop.time() - quiet_since < SETTLE_QUIET_S:
-        await asyncio.sleep(TICK_S)
-        if (now_seen := watcher.model.kinds.total()) != seen:
-            seen, quiet_since = now_seen, loop.time()
 
 
 async def _loop(feed: LiveFeed, watcher: Watcher, stop: asyncio.Event,
