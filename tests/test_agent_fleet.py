@@ -71,6 +71,8 @@ class Fleet:
     reported: dict[int, int] = field(default_factory=lambda: defaultdict(int))
     events: list[RobotEvent] = field(default_factory=list)
     heard_at: dict[tuple[str, int | None], float] = field(default_factory=dict)
+    # (taker, dead) -> the moves the taker had reported when its takeover decision was heard
+    decided_after: dict[tuple[int, int | None], int] = field(default_factory=dict)
     deaths: list[DeathNotice] = field(default_factory=list)
     missions: list[MissionStatus] = field(default_factory=list)
 
@@ -143,6 +145,8 @@ async def _listen(fleet: Fleet, bus: Bus) -> None:
     def on_event(key: str, event: RobotEvent) -> None:
         fleet.events.append(event)
         fleet.heard_at.setdefault((event.kind, event.subject), time.monotonic())
+        if event.kind == "takeover_started":
+            fleet.decided_after[(event.robot, event.subject)] = fleet.reported[event.robot]
 
     bus.subscribe(keys.all_events(m), RobotEvent, on_event, BoundedFifo(65536))
     def on_death(key: str, notice: DeathNotice) -> None:
@@ -283,10 +287,11 @@ async def test_fleet_survives_sigkills_as_the_takeover_semantics_say(
         assert semantics.complete
         assert_walks_follow(fleet, semantics.walks, dead=set(victims))
         # Takeovers that found nothing left depend on timing; those that walked do not —
-        # except a victim's own takeover whose only step was the move in flight when it was
-        # killed (unreported, so the semantics place its death just before that decision).
+        # except a victim's takeover decided after its last reported move (it was killed
+        # before reporting a step of it, or with the first step in flight): the semantics
+        # place its death at that move, before the decision.
         in_flight = {(taker, dead) for taker, dead in walked
-                     if taker in victims and len(fleet.walks[taker]) - 1 == moves[taker] + 1}
+                     if taker in victims and fleet.decided_after[(taker, dead)] >= moves[taker]}
         assert walked - in_flight <= {(t.taker, t.dead) for t in semantics.takeovers}
         # The same against the independent oracle (not the agents' own state machine).
         independent = run_plan(fleet.plan, fit_failures(fleet.plan, moves))
