@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import time
 from pathlib import Path
 
@@ -18,9 +19,10 @@ from bus.config import DEFAULT_ENDPOINT, DEFAULT_LEASE_MS, ConnectionSettings
 from deploy import security
 from deploy.errors import FleetError, UsageError
 from deploy.fleet import (
+    ROUTER_WAIT_S,
     check_port_free,
     default_run_dir,
-    port_reachable,
+    router_answers_within,
     unique_mission,
 )
 from deploy.launch import launch
@@ -154,9 +156,15 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
 def endpoint_of(settings: UpSettings) -> str:
     """The router endpoint the fleet uses; FleetError at once if it is unusable."""
     if settings.connect is not None:
-        if not port_reachable(settings.connect):
-            raise FleetError(f"no router answers at {settings.connect} (start one with "
-                             f"'mstc router --listen {settings.connect}' or zenohd)")
+        endpoint = settings.connect
+
+        def say_waiting() -> None:
+            print(f"mstc up: no router answers at {endpoint} yet; waiting up to "
+                  f"{ROUTER_WAIT_S:g} s", file=sys.stderr, flush=True)
+
+        if not router_answers_within(endpoint, ROUTER_WAIT_S, say_waiting):
+            raise FleetError(f"no router answers at {endpoint} after {ROUTER_WAIT_S:g} s "
+                             f"(start one with 'mstc router --listen {endpoint}')")
         return settings.connect
     check_port_free(settings.listen)
     return settings.listen

@@ -25,6 +25,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -38,6 +39,10 @@ LAUNCHER = "up"  # the launcher's role and name in fleet.json, whichever command
 # Stopping order by role: agents first (they would report a vanished world as a failure),
 # then the world processes, the router last (everyone's link).
 SHUTDOWN_ORDER = {"agent": 0, "simhw": 1, "radio": 1, "router": 2}
+# `mstc up --connect` waits this long for a router that does not answer yet (one being
+# restarted, or started by a script beside it) before it gives up.
+ROUTER_WAIT_S = 10.0
+ROUTER_PROBE_PERIOD_S = 0.2
 
 
 @dataclass(frozen=True)
@@ -337,3 +342,20 @@ def port_reachable(endpoint: str, timeout: float = 1.0) -> bool:
             return True
     except OSError:
         return False
+
+
+def router_answers_within(endpoint: str, timeout: float, on_wait: Callable[[], None]) -> bool:
+    """True once a router listens at ``endpoint``, probing until ``timeout`` seconds have
+    passed; ``on_wait`` is called once, at the first failed probe. A router that is being
+    (re)started, or one a script starts beside ``mstc up``, is waited out, not reported as
+    missing."""
+    deadline = time.monotonic() + timeout
+    waited = False
+    while not port_reachable(endpoint, timeout=min(1.0, timeout)):
+        if time.monotonic() >= deadline:
+            return False
+        if not waited:
+            waited = True
+            on_wait()
+        time.sleep(ROUTER_PROBE_PERIOD_S)
+    return True

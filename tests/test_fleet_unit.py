@@ -10,6 +10,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections import deque
 from pathlib import Path
@@ -39,6 +40,7 @@ from deploy.fleet import (
     check_port_free,
     is_running,
     latest_run_dir,
+    router_answers_within,
     start_ticks,
 )
 from deploy.monitor.coverage import reachable_sub_cells
@@ -376,3 +378,31 @@ def test_kill_and_down_on_stand_in_processes(tmp_path: Path,
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
+
+
+def test_a_router_that_starts_late_is_waited_for_and_a_missing_one_is_not_forever(
+        free_port: int) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port}"
+    waits: list[float] = []
+    started = time.monotonic()
+    assert not router_answers_within(endpoint, 0.6, lambda: waits.append(time.monotonic()))
+    assert len(waits) == 1 and waits[0] - started < 0.5  # said at once, once
+    assert time.monotonic() - started >= 0.6
+
+    listener = socket.socket()
+    listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+
+    def listen_late() -> None:
+        time.sleep(0.5)
+        listener.bind(("127.0.0.1", free_port))
+        listener.listen()
+
+    late = threading.Thread(target=listen_late)
+    late.start()
+    try:
+        waits.clear()
+        assert router_answers_within(endpoint, 10.0, lambda: waits.append(time.monotonic()))
+        assert len(waits) == 1
+    finally:
+        late.join()
+        listener.close()
