@@ -202,7 +202,7 @@ def covered_mask(fleet: Fleet, shape: tuple[int, int]) -> np.ndarray:
     ("nb", "dfs"), pytest.param("bt", "dfs", marks=pytest.mark.slow),
     pytest.param("opt", "dfs", marks=pytest.mark.slow),
     # A paper tree (Create Tree needs the starts, which each agent learns by gathering).
-    ("opt", "createtree")])
+    pytest.param("opt", "createtree", marks=pytest.mark.slow)])
 async def test_fleet_follows_the_plan_and_covers_everything(
         fleet_bus: Bus, router: str, world: Path, algo: str, tree: str) -> None:
     fleet = await make_fleet(fleet_bus, router, world, algo, tree)
@@ -427,6 +427,7 @@ async def test_a_router_restart_mid_mission_does_not_lose_the_mission(
         stop_process(router)
 
 
+@pytest.mark.slow
 async def test_missing_robots_and_digest_mismatch_stop_the_mission_with_clear_errors(
         fleet_bus: Bus, router: str, world: Path) -> None:
     assert plan_digest(compute_plan(resolve_world(str(world)), STARTS[:2], "nb", "dfs", 0)) \

@@ -89,10 +89,16 @@ def test_robot_boxed_in_a_dead_end_walks_out() -> None:
     plan = balanced_plan(area, seed=0)
     assert any(note.startswith(WALK_OUT) for note in plan.notes)
     check_plan(plan, area, max_visits=2, own_revisits_only=False)
-    # Two moves out (through robot 1's start cell), then regions balanced with that in mind.
-    assert plan.makespan <= bound + 3
     stuck = partition(area, seed=0)
     assert stuck is not None and min(stuck.sizes) == 4  # without walking out: 4 vs 72
+    # Against what it replaces, not a measured margin: robot 1 alone on 72 sub-cells needs 71
+    # moves. Two moves out (through robot 1's start cell), then regions balanced with that in
+    # mind, come within a few moves of the bound — but plain opt reaches the bound here, so
+    # the registry's planner (the better of the two) must be optimal.
+    assert bound <= plan.makespan < max(stuck.sizes) - 1
+    tree = build_tree(area.cells, "dfs", seed=0)
+    registry = algorithm("balanced").load_plan()(area, tree, "balanced", 0)
+    assert make_plan(area, tree, "opt").makespan == bound == registry.makespan
     result = simulate_failures(plan, {0: 1})
     assert result.complete
 
@@ -234,6 +240,7 @@ def test_takeover_covers_everything_with_up_to_k_minus_1_failures(
     assert result.coverage_time >= math.ceil(area.n / k) - 1
 
 
+@pytest.mark.slow
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(instances(max_side=6, max_k=6))
 def test_takeover_without_failures_is_the_plan(

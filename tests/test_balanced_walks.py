@@ -211,15 +211,18 @@ def test_entry_routes_are_shortest_walks_into_distinct_regions(
 
 def test_crowded_corner_is_planned_by_assignment() -> None:
     # k = 30, seed 5 of the issue: ten robots start in the top-left corner and the regions
-    # grown from the starts stall 12 moves over the bound (docs/balanced.md); regions from
-    # spread seeds with the robots walking to them bring it within 6.
+    # grown from the starts stall far over the bound (docs/balanced.md); regions from spread
+    # seeds with the robots walking to them must do better than that — a comparison with
+    # the step it replaces, not a margin read off one run.
     area = _issue_instance(30, 5)
     bound = math.ceil(area.n / 30) - 1
+    grown = _partition_state(area, 5, None, None)
+    assert grown is not None
     found = assigned_partition(
         area, lambda starts, offsets: _partition_state(area, 5, starts, offsets), bound + 1)
     assert found is not None
     state, routes = found
-    assert max(state.load) - 1 <= bound + 6
+    assert bound <= max(state.load) - 1 < max(grown.load) - 1
     for robot, route in routes.items():  # loads count the walks
         assert state.starts[robot] == route[-1]
         size = 4 * len(state.whole[robot]) + sum(len(x.subs) for x in state.leaves[robot])

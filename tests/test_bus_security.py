@@ -217,6 +217,7 @@ def sessions(secure: tuple[str, Path]) -> Iterator[dict[str, zenoh.Session]]:
             session.close()
 
 
+@pytest.mark.slow
 @pytest.mark.integration
 def test_no_credentials_and_wrong_passwords_are_refused(
         secure: tuple[str, Path], tmp_path: Path) -> None:

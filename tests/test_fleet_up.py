@@ -90,6 +90,7 @@ def test_up_covers_everything(free_port: int, tmp_path: Path) -> None:
         assert (tmp_path / "run" / "logs" / f"{name}.log").exists()
 
 
+@pytest.mark.slow
 def test_up_with_a_robot_killed_mid_mission(free_port: int, tmp_path: Path) -> None:
     result = run_up(free_port, tmp_path / "run", "--time-scale", "0",
                     "--kill", "1@progress=30")
@@ -98,6 +99,7 @@ def test_up_with_a_robot_killed_mid_mission(free_port: int, tmp_path: Path) -> N
     assert "SIGKILL agent 1 at 30 %" in result.stdout
 
 
+@pytest.mark.slow
 def test_second_fleet_on_same_port_fails_then_down_stops_first(free_port: int,
                                                               tmp_path: Path) -> None:
     first = start_up(free_port, tmp_path / "first", "--time-scale", "1")
@@ -122,7 +124,8 @@ def test_second_fleet_on_same_port_fails_then_down_stops_first(free_port: int,
             first.wait()
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+@pytest.mark.parametrize("sig", [pytest.param(signal.SIGTERM, marks=pytest.mark.slow),
+                                 signal.SIGHUP])
 def test_a_signal_stops_everything_cleanly(free_port: int, tmp_path: Path,
                                            sig: signal.Signals) -> None:
     """SIGTERM from `mstc down`, SIGHUP from a closed terminal: no child is left behind."""

@@ -122,7 +122,7 @@ def test_agents_give_up_when_a_robot_never_reports(router: str,
 
 @pytest.mark.parametrize(("spec", "robots", "algo"), [
     ("perfect:N=2,H=3", 4, "cocta"),
-    ("general:N=2,H=4,remove=2,at=1,seed=3", 5, "ncocta"),
+    pytest.param("general:N=2,H=4,remove=2,at=1,seed=3", 5, "ncocta", marks=pytest.mark.slow),
 ])
 def test_tree_fleet_equals_the_lockstep_run(tmp_path: Path, spec: str, robots: int,
                                             algo: str) -> None:
@@ -174,6 +174,7 @@ def test_a_killed_robot_is_removed_and_the_survivors_finish(tmp_path: Path) -> N
         assert f"done: coverage time {lockstep.result.time} steps" in text, text
 
 
+@pytest.mark.slow
 def test_two_killed_robots_are_removed_and_the_survivors_finish(tmp_path: Path) -> None:
     # the second kill waits for step 12, which the team reaches only after it has removed the
     # first robot (a settle period later): deaths one at a time, as docs/treecover.md assumes

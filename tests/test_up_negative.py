@@ -40,6 +40,7 @@ def lost(run_dir: Path) -> dict[int, str]:
     return {entry["robot"]: entry["why"] for entry in summary(run_dir)["robots_lost"]}
 
 
+@pytest.mark.slow
 def test_up_exits_1_when_every_robot_is_killed(free_port: int, tmp_path: Path) -> None:
     run = tmp_path / "run"
     result = run_up(free_port, run, "--time-scale", "1", "--kill", "0@0", "--kill", "1@0",
@@ -51,6 +52,7 @@ def test_up_exits_1_when_every_robot_is_killed(free_port: int, tmp_path: Path) -
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.slow
 def test_up_exits_1_when_the_mission_stalls(free_port: int, tmp_path: Path) -> None:
     # 1000 wall seconds per simulated one: no forward step ends within the stall timeout.
     # The agents give up on their bodies 10 s in (they would report "every agent has
@@ -71,6 +73,7 @@ def test_up_exits_1_when_the_agents_are_not_up_in_time(free_port: int,
     assert "agents not up after" in result.stdout and "robots not announced" in result.stdout
 
 
+@pytest.mark.slow
 def test_up_exits_1_on_an_agents_failed_verdict(free_port: int, tmp_path: Path) -> None:
     # Agents that give up gathering the others' starts at once declare the mission failed.
     result = run_up(free_port, tmp_path / "run", "--time-scale", "0",
@@ -81,7 +84,7 @@ def test_up_exits_1_on_an_agents_failed_verdict(free_port: int, tmp_path: Path) 
     assert summary(tmp_path / "run")["complete"] is False
 
 
-@pytest.mark.parametrize("victim", ["simhw", "router"])
+@pytest.mark.parametrize("victim", ["simhw", pytest.param("router", marks=pytest.mark.slow)])
 def test_up_exits_1_when_a_world_process_dies(free_port: int, tmp_path: Path,
                                               victim: str) -> None:
     run = tmp_path / "run"
@@ -129,6 +132,7 @@ def test_the_readme_headline_command_kills_robot_2(free_port: int, tmp_path: Pat
             proc.wait()
 
 
+@pytest.mark.slow
 def test_kill_at_progress_really_kills(free_port: int, tmp_path: Path) -> None:
     run = tmp_path / "run"
     result = run_up(free_port, run, "--time-scale", "0", "--kill", "2@progress=40")
