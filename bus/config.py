@@ -32,7 +32,7 @@ from bus.errors import ConfigError, KeyExprError
 from bus.keys import check_mission
 from bus.security import credentials
 from bus.security.credentials import ENV_CREDENTIALS, ENV_ROLE
-from bus.security.roles import parse_role
+from bus.security.roles import ROUTER, parse_role
 
 _log = logging.getLogger("mstc.bus")
 
@@ -169,7 +169,7 @@ def add_security_arguments(parser: argparse.ArgumentParser,
                        help=f"mission credentials file (JSON, mode 0600; env "
                             f"{ENV_CREDENTIALS}); a router enforces them, a client logs in")
     group.add_argument("--role", default=env.get(ENV_ROLE) or None,
-                       help=f"role to log in as: robot_<id>, simhw, operator or observer "
+                       help=f"role to log in as: robot_<id>, simhw, operator, observer or router "
                             f"(env {ENV_ROLE})")
     group.add_argument("--tls-ca", metavar="PEM", type=Path,
                        default=env.get(ENV_TLS_CA) or None,
@@ -271,6 +271,12 @@ def _security_values(settings: ConnectionSettings) -> dict[str, object]:
                               f"{creds.mission!r}, not {settings.mission!r}")
         values["transport/auth/usrpwd/user"] = role.name
         values["transport/auth/usrpwd/password"] = creds.password(role)
+    joining = settings.mode == "router" and bool(settings.connect)
+    if settings.credentials is not None and joining:
+        _check_secure_join(settings)
+        creds = credentials.load(settings.credentials)
+        values["transport/auth/usrpwd/user"] = ROUTER.name
+        values["transport/auth/usrpwd/password"] = creds.password(ROUTER)
     tls = settings.tls
     if tls is not None:
         side = "listen" if settings.mode == "router" else "connect"
@@ -278,9 +284,26 @@ def _security_values(settings: ConnectionSettings) -> dict[str, object]:
         if tls.cert is not None and tls.key is not None:
             values[f"transport/link/tls/{side}_certificate"] = str(tls.cert)
             values[f"transport/link/tls/{side}_private_key"] = str(tls.key)
+            if joining:  # the router certificate serves both ways (scripts/make-certs.sh)
+                values["transport/link/tls/connect_certificate"] = str(tls.cert)
+                values["transport/link/tls/connect_private_key"] = str(tls.key)
         values["transport/link/tls/enable_mtls"] = tls.mtls if side == "listen" \
             else tls.cert is not None
     return values
+
+
+def _check_secure_join(settings: ConnectionSettings) -> None:
+    """A secured router joins another only over mTLS: the two recognise each other by the
+    router certificate (bus.security.acl), and the one joined never logs in to the other."""
+    tls = settings.tls
+    if tls is None or not tls.mtls or tls.cert is None or tls.key is None:
+        raise ConfigError("a secured router joins another only over mTLS: add --tls-ca, "
+                          "--tls-cert and --tls-key of the router certificate and --mtls "
+                          "(docs/security.md, 'Several hosts')")
+    plain = [e for e in settings.connect if not e.startswith("tls/")]
+    if plain:
+        raise ConfigError(f"a secured router joins another over tls/ endpoints, not "
+                          f"{', '.join(plain)}")
 
 
 class _Opener:

@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     new.add_argument("--force", action="store_true", help="replace an existing file")
     role = actions.add_parser("role", help="one role's entry alone, to copy to its host")
     role.add_argument("file", type=Path)
-    role.add_argument("role", help="robot_<id>, simhw, operator or observer")
+    role.add_argument("role", help="robot_<id>, simhw, operator, observer or router")
     role.add_argument("out", type=Path)
     rotate = actions.add_parser("rotate", help="fresh passwords for the same roles")
     rotate.add_argument("file", type=Path)

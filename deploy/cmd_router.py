@@ -13,7 +13,7 @@ import threading
 from types import FrameType
 
 from bus.config import DEFAULT_ENDPOINT, add_connection_arguments, settings_from_args
-from bus.errors import BusError
+from bus.errors import BusError, ConfigError
 from bus.router import READY_MARK, run_router
 
 
@@ -48,6 +48,9 @@ def run(args: argparse.Namespace) -> int:
         run_router(settings, stop, ready=lambda: print(
             f"{READY_MARK}, listening on {', '.join(settings.listen)}", flush=True),
             parent=parent)
+    except ConfigError as error:  # a mistake in the settings, found while applying them
+        print(f"mstc router: error: {error}", file=sys.stderr)
+        return 2
     except BusError as error:
         print(f"mstc router: error: {error}", file=sys.stderr)
         return 1

@@ -59,7 +59,7 @@ for h in $hosts; do
     esac
     san="${san:+$san,}$entry"
 done
-leaf router mstc-router serverAuth "$san"
+leaf router mstc-router serverAuth,clientAuth "$san"  # also to join other routers
 for c in $clients; do
     leaf "$c" "$c" clientAuth ""
 done

@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import stat
 import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -47,8 +48,8 @@ def test_credentials_file_is_private_and_round_trips(tmp_path: Path) -> None:
     loaded = credentials.load(path)
     assert loaded == creds
     assert [r.name for r in loaded.roles] == [
-        "robot_0", "robot_1", "robot_2", "simhw", "operator", "observer"]
-    assert len(set(creds.passwords.values())) == 6
+        "robot_0", "robot_1", "robot_2", "simhw", "operator", "observer", "router"]
+    assert len(set(creds.passwords.values())) == 7
     assert creds.rotated().passwords.keys() == creds.passwords.keys()
     assert not set(creds.rotated().passwords.values()) & set(creds.passwords.values())
     assert creds.only(robot(1)).passwords == {"robot_1": creds.passwords["robot_1"]}
@@ -362,3 +363,85 @@ def test_tls_files_must_exist_and_pair(tmp_path: Path) -> None:
     (tmp_path / "ca.pem").write_text("x")
     with pytest.raises(ConfigError, match="together"):
         TlsFiles(tmp_path / "ca.pem", cert=tmp_path / "ca.pem")
+
+
+def _put_until_heard(session: zenoh.Session, heard: _Heard, key: str, seq: int,
+                     timeout: float = 8.0) -> bool:
+    """Heartbeats on ``key`` every 0.1 s until ``heard`` has one (a joined router's
+    routes come up a moment after it says it is ready)."""
+    robot_id = int(key.rsplit("/", 1)[1])
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        session.put(key, encode(Heartbeat(robot_id, 1, seq, None, "ok", 0.0)))
+        if heard.wait_for(key, 0.1):
+            return True
+    return False
+
+
+@pytest.mark.integration
+@pytest.mark.slow  # two routers and five TLS sessions: CI runs it, the quick loop does not
+def test_two_secured_routers_join_over_mtls_and_keep_every_role_to_its_keys(
+        tmp_path: Path) -> None:
+    # Each router checks the roles that logged in to it; the link between them carries the
+    # mission both ways because each recognises the other by the router certificate.
+    pki = tmp_path / "pki"
+    subprocess.run([str(MAKE_CERTS), str(pki), "--client", "robot_3", "--client", "robot_5",
+                    "--client", "observer"], check=True, capture_output=True)
+    path = tmp_path / credentials.CREDENTIALS_FILE
+    credentials.generate(MISSION, 6).save(path)
+    router_tls = ("--credentials", str(path), "--tls-ca", str(pki / "ca.pem"),
+                  "--tls-cert", str(pki / "router.pem"), "--tls-key", str(pki / "router.key"))
+    hub = f"tls/localhost:{pick_free_port()}"
+    joined = f"tls/localhost:{pick_free_port()}"
+
+    # Without mTLS a secured router refuses to join: the other side could not know it.
+    refused = subprocess.run(
+        [*start_argv(joined), "--connect", hub, *router_tls], capture_output=True, text=True,
+        timeout=30, check=False)
+    assert refused.returncode == 2 and "only over mTLS" in refused.stderr, refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1
+
+    procs = [start_router_process(hub, extra_args=(*router_tls, "--mtls"))]
+    opened: list[zenoh.Session] = []
+    try:
+        procs.append(start_router_process(joined, extra_args=(
+            "--connect", hub, *router_tls, "--mtls")))
+
+        def session(endpoint: str, role: str) -> zenoh.Session:
+            found = _open(endpoint, path, role,
+                          TlsFiles(pki / "ca.pem", pki / f"{role}.pem", pki / f"{role}.key"))
+            assert found is not None, f"{role} refused at {endpoint}"
+            opened.append(found)
+            return found
+
+        near_observer, far_observer = session(hub, "observer"), session(joined, "observer")
+        near_robot, far_robot = session(hub, "robot_3"), session(joined, "robot_5")
+        heard_far = _Heard(far_observer, keys.all_heartbeats(MISSION))
+        heard_near = _Heard(near_observer, keys.all_heartbeats(MISSION))
+        assert _put_until_heard(near_robot, heard_far, keys.heartbeat(MISSION, 3), 1), \
+            "nothing crosses from the hub to the joined router"
+        assert _put_until_heard(far_robot, heard_near, keys.heartbeat(MISSION, 5), 1), \
+            "nothing crosses from the joined router to the hub"
+        # robot 5 writing robot 3's key at its own router reaches neither side
+        before = (len(heard_near.payloads), len(heard_far.payloads))
+        for _ in range(5):
+            far_robot.put(keys.heartbeat(MISSION, 3), encode(Heartbeat(3, 1, 99, None, "ok",
+                                                                        0.0)))
+        near_robot.put(keys.heartbeat(MISSION, 3), encode(Heartbeat(3, 1, 2, None, "ok", 0.0)))
+        deadline = time.monotonic() + 3.0  # the witness: robot 3's own next heartbeat
+        while time.monotonic() < deadline and not any(
+                decode(p, Heartbeat).seq == 2 for p in heard_far.payloads):
+            time.sleep(0.02)
+        assert any(decode(p, Heartbeat).seq == 2 for p in heard_far.payloads)
+        forged = [decode(p, Heartbeat).seq for p in
+                  heard_near.payloads[before[0]:] + heard_far.payloads[before[1]:]]
+        assert 99 not in forged, "a robot wrote another's key across the routers"
+    finally:
+        for opened_session in opened:
+            opened_session.close()
+        for proc in procs:
+            stop_process(proc)
+
+
+def start_argv(listen: str) -> list[str]:
+    return [sys.executable, "-m", "deploy.cli", "router", "--listen", listen]

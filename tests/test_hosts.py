@@ -1,6 +1,8 @@
-"""A fleet spread over two hosts (network namespaces the test makes and removes), each with
-its own ``mstc router``, the routers joined; the link between the hosts is cut mid-mission
-and healed, and the mission completes (issue 11, item 6; docs/operations.md "Several hosts").
+"""A secured fleet spread over two hosts (network namespaces the test makes and removes), each
+with its own ``mstc router``, the routers joined over mTLS; the link between the hosts is cut
+mid-mission and healed, and the mission completes (issue 11, item 6; docs/operations.md
+"Several hosts", docs/security.md "Several hosts"). Every process logs in with its own role
+and certificate, as a deployment over a real network would.
 
 Host 0 runs its router, simhw, a recording monitor and robots 0-1; host 1 runs a router
 joined to host 0's and robots 2-3. While the link is down, the robots of each side lose
@@ -19,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from bus.router import READY_MARK
+from bus.security import credentials
 from deploy.chaos.hosts import Host, hosts, hosts_problem
 from deploy.chaos.trial import DOUBLE_WORK
 from deploy.fleet import mstc_argv
@@ -32,6 +35,26 @@ STARTS = "0,0;5,20;15,3;20,25"
 # the middle, and the near side's takeovers of the far sections are the rest of the test.
 TIME_SCALE = "200"
 LIMIT_S = 120.0
+ROOT = Path(__file__).resolve().parent.parent
+ROBOTS = 4
+
+
+def _secured(tmp_path: Path, near: Host, far: Host) -> dict[str, tuple[str, ...]]:
+    """Per role: the options giving a process its credentials and TLS files (the router
+    certificate valid for both hosts' addresses)."""
+    pki = tmp_path / "pki"
+    roles = [f"robot_{i}" for i in range(ROBOTS)] + ["simhw", "observer"]
+    subprocess.run([str(ROOT / "scripts" / "make-certs.sh"), str(pki), "--host", near.address,
+                    "--host", far.address, *[a for r in roles for a in ("--client", r)]],
+                   check=True, capture_output=True)
+    path = tmp_path / credentials.CREDENTIALS_FILE
+    credentials.generate(MISSION, ROBOTS).save(path)
+    ca = ("--credentials", str(path), "--tls-ca", str(pki / "ca.pem"))
+    options = {role: (*ca, "--role", role, "--tls-cert", str(pki / f"{role}.pem"),
+                      "--tls-key", str(pki / f"{role}.key")) for role in roles}
+    options["router"] = (*ca, "--tls-cert", str(pki / "router.pem"), "--tls-key",
+                         str(pki / "router.key"), "--mtls")
+    return options
 
 
 def _wait_for(path: Path, text: str, proc: subprocess.Popen[bytes], timeout: float) -> None:
@@ -66,7 +89,7 @@ class Processes:
             proc.wait(10)
 
 
-def test_a_fleet_over_two_hosts_survives_a_cut_between_them(tmp_path: Path) -> None:
+def test_a_secured_fleet_over_two_hosts_survives_a_cut_between_them(tmp_path: Path) -> None:
     problem = hosts_problem()
     if problem is not None:
         pytest.skip(problem)
@@ -74,26 +97,30 @@ def test_a_fleet_over_two_hosts_survives_a_cut_between_them(tmp_path: Path) -> N
     record = tmp_path / "recording.jsonl"
     procs = Processes(tmp_path)
     with hosts(2, prefix="mt") as (near, far):
+        secured = _secured(tmp_path, near, far)
         try:
-            log = procs.start("router-0", near, "router", "--listen", near.endpoint,
-                              "--exit-with-parent")
+            log = procs.start("router-0", near, "router", "--listen", near.tls_endpoint,
+                              "--exit-with-parent", *secured["router"])
             _wait_for(log, READY_MARK, procs.started["router-0"], 20)
-            log = procs.start("router-1", far, "router", "--listen", far.endpoint,
-                              "--connect", near.endpoint, "--exit-with-parent")
+            log = procs.start("router-1", far, "router", "--listen", far.tls_endpoint,
+                              "--connect", near.tls_endpoint, "--exit-with-parent",
+                              *secured["router"])
             _wait_for(log, READY_MARK, procs.started["router-1"], 20)
             link = ("--mode", "client", "--mission", MISSION)
             log = procs.start("simhw", near, "simhw", *world, "--starts", STARTS, "--seed",
-                              "0", "--time-scale", TIME_SCALE, "--connect", near.endpoint,
-                              *link)
+                              "0", "--time-scale", TIME_SCALE, "--connect", near.tls_endpoint,
+                              *link, *secured["simhw"])
             _wait_for(log, "simhw ready", procs.started["simhw"], 30)
-            log = procs.start("monitor", near, "monitor", "--connect", near.endpoint,
+            log = procs.start("monitor", near, "monitor", "--connect", near.tls_endpoint,
                               "--mission", MISSION, "--plain", "--record", str(record),
-                              "--exit-when-done", "--duration", str(LIMIT_S))
+                              "--exit-when-done", "--duration", str(LIMIT_S),
+                              *secured["observer"])
             _wait_for(log, "world example", procs.started["monitor"], 30)  # it heard simhw
             for robot, host in ((0, near), (1, near), (2, far), (3, far)):
                 procs.start(f"agent-{robot}", host, "agent", "--id", str(robot), "--algo",
-                            "opt", *world, "--tree", "dfs", "--seed", "0", "--robots", "4",
-                            "--connect", host.endpoint, *link)
+                            "opt", *world, "--tree", "dfs", "--seed", "0", "--robots",
+                            str(ROBOTS), "--connect", host.tls_endpoint, *link,
+                            *secured[f"robot_{robot}"])
             _wait_for(tmp_path / "agent-2.log", "driving", procs.started["agent-2"], 60)
             time.sleep(0.5)
             far.cut()

@@ -22,7 +22,7 @@ from bus import keys
 from bus.messages.schema import ALIVE, FAMILIES, Audience, KeyFamily
 from bus.recovery import advanced_keys
 from bus.security.credentials import Credentials
-from bus.security.roles import Role
+from bus.security.roles import ROUTER_COMMON_NAME, Role
 
 # Zenoh's ACL message types
 _READ_IN = ("declare_subscriber", "declare_liveliness_subscriber", "liveliness_query")
@@ -86,6 +86,8 @@ def access_control(mission: str, roles: Iterable[Role], *,
     policies: list[dict[str, Any]] = []
     names = []
     for role in roles:
+        if role.kind == "router":
+            continue  # its log-in grants nothing: routers go by their certificate (below)
         subject: dict[str, Any] = {"id": role.name, "usernames": [role.name]}
         if by_certificate:
             subject["cert_common_names"] = [role.name]
@@ -102,6 +104,17 @@ def access_control(mission: str, roles: Iterable[Role], *,
             policies.append({"id": role.name, "rules": own_rules, "subjects": [role.name]})
     policies.append({"id": "readers", "rules": ["read", "recover", "receive"],
                      "subjects": names})
+    if by_certificate:
+        # Routers of other hosts, both ways: the one that joined this router (its client
+        # certificate) and the one this router joined (its server certificate; that side
+        # never logs in here). A router forwards every role's traffic, each role checked by
+        # the router it logged in to, so the link may carry all of the mission.
+        subjects.append({"id": "routers", "cert_common_names": [ROUTER_COMMON_NAME]})
+        rules.append({"id": "routers/forward", "messages": list(_ALL),
+                      "flows": ["ingress"], "permission": "allow",
+                      "key_exprs": [everything, advanced_keys(everything)]})
+        policies.append({"id": "routers", "rules": ["routers/forward", "receive"],
+                         "subjects": ["routers"]})
     return {"enabled": True, "default_permission": "deny", "rules": rules,
             "subjects": subjects, "policies": policies}
 

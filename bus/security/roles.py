@@ -9,10 +9,16 @@ from typing import Literal
 
 from bus.errors import ConfigError
 
-RoleKind = Literal["robot", "simhw", "operator", "observer"]
+RoleKind = Literal["robot", "simhw", "operator", "observer", "router"]
 # simhw: the simulator and the radio; operator: the launcher, kill and down (the only role
-# reaching hw/admin); observer: monitor, recorder, report, bridges (read-only)
-SERVICE_KINDS: tuple[RoleKind, ...] = ("simhw", "operator", "observer")
+# reaching hw/admin); observer: monitor, recorder, report, bridges (read-only); router: a
+# router of another host joining the mission's router (`mstc router --connect`). The router
+# role's log-in alone grants nothing: routers recognise each other by the router
+# certificate (ROUTER_COMMON_NAME, mTLS only), since a router forwards every role's traffic.
+SERVICE_KINDS: tuple[RoleKind, ...] = ("simhw", "operator", "observer", "router")
+# The common name of the routers' certificate (scripts/make-certs.sh), for listening and for
+# joining another router.
+ROUTER_COMMON_NAME = "mstc-router"
 _ROBOT_RE = re.compile(r"^robot_(0|[1-9][0-9]{0,5})$")
 
 
@@ -49,21 +55,24 @@ def robot(robot_id: int) -> Role:
 SIMHW = Role("simhw")
 OPERATOR = Role("operator")
 OBSERVER = Role("observer")
+ROUTER = Role("router")
 
 
 def parse_role(name: str) -> Role:
-    """``robot_3``, ``simhw``, ``operator`` or ``observer``; ConfigError otherwise."""
+    """``robot_3``, ``simhw``, ``operator``, ``observer`` or ``router``; ConfigError
+    otherwise."""
     match = _ROBOT_RE.match(name)
     if match:
         return robot(int(match.group(1)))
     for kind in SERVICE_KINDS:
         if name == kind:
             return Role(kind)
-    raise ConfigError(f"unknown role {name!r}: expected robot_<id>, simhw, operator or observer")
+    raise ConfigError(f"unknown role {name!r}: expected robot_<id>, simhw, operator, observer "
+                      "or router")
 
 
 def mission_roles(robots: int) -> tuple[Role, ...]:
     """Every role of a mission of ``robots`` robots (ids 0..robots-1)."""
     if robots < 1:
         raise ConfigError(f"a mission has at least one robot, got {robots}")
-    return (*(robot(i) for i in range(robots)), SIMHW, OPERATOR, OBSERVER)
+    return (*(robot(i) for i in range(robots)), SIMHW, OPERATOR, OBSERVER, ROUTER)

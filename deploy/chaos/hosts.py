@@ -41,6 +41,10 @@ class Host:
     def endpoint(self) -> str:
         return f"tcp/{self.address}:{ZENOH_PORT}"
 
+    @property
+    def tls_endpoint(self) -> str:
+        return f"tls/{self.address}:{ZENOH_PORT}"
+
     def cut(self) -> None:
         _ip("-n", self.name, "link", "set", self.link, "down")
 
