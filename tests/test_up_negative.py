@@ -52,7 +52,7 @@ def test_up_exits_1_when_every_robot_is_killed(free_port: int, tmp_path: Path) -
     assert "Traceback" not in result.stderr
 
 
-@pytest.mark.slow
+# Not slow: the fast suite's witness that the stall timeout fires (docs/testing.md).
 def test_up_exits_1_when_the_mission_stalls(free_port: int, tmp_path: Path) -> None:
     # 1000 wall seconds per simulated one: no forward step ends within the stall timeout.
     # The agents give up on their bodies 10 s in (they would report "every agent has
