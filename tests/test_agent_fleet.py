@@ -235,7 +235,7 @@ def lockstep_failures(plan: Plan, moves: dict[int, int]) -> dict[int, int]:
     horizon = 4 * plan.n
     for robot in sorted(moves, key=moves.__getitem__):
         for when in range(moves[robot], horizon):
-            result = simulate_failures(plan, {**failures, robot: when})
+            result = simulate_failures(plan, {**failures, robot: when}, recovery="takeover")
             if len(result.walks[robot]) - 1 == moves[robot]:
                 failures[robot] = when
                 break
@@ -283,7 +283,8 @@ async def test_fleet_survives_sigkills_as_the_takeover_semantics_say(
               f"plan {[rp.steps for rp in fleet.plan.robots]}")
         area = area_mask(world)
         assert np.array_equal(covered_mask(fleet, area.shape), area)
-        semantics = simulate_failures(fleet.plan, lockstep_failures(fleet.plan, moves))
+        semantics = simulate_failures(fleet.plan, lockstep_failures(fleet.plan, moves),
+                                      recovery="takeover")
         assert semantics.complete
         assert_walks_follow(fleet, semantics.walks, dead=set(victims))
         # Takeovers that found nothing left depend on timing; those that walked do not —

@@ -93,7 +93,7 @@ def test_robot_boxed_in_a_dead_end_walks_out() -> None:
     assert plan.makespan <= bound + 3
     stuck = partition(area, seed=0)
     assert stuck is not None and min(stuck.sizes) == 4  # without walking out: 4 vs 72
-    result = simulate_failures(plan, {0: 1})
+    result = simulate_failures(plan, {0: 1}, recovery="takeover")
     assert result.complete
 
 
@@ -219,7 +219,7 @@ def test_takeover_covers_everything_with_up_to_k_minus_1_failures(
     horizon = plan.makespan + 3
     failures = {r: data.draw(st.integers(0, horizon)) for r in dead}
     delay = data.draw(st.integers(0, 4))
-    result = simulate_failures(plan, failures, detection_delay=delay)
+    result = simulate_failures(plan, failures, detection_delay=delay, recovery="takeover")
     assert result.complete
     check_coverage(result.covered, area)
     for robot, walk in zip(result.robots, result.walks, strict=True):
@@ -241,7 +241,7 @@ def test_takeover_without_failures_is_the_plan(
     grid, starts, seed = case
     area = work_area(grid, starts)
     plan = balanced_plan(area, seed=seed)
-    result = simulate_failures(plan, {})
+    result = simulate_failures(plan, {}, recovery="takeover")
     assert result.walks == tuple(rp.path for rp in plan.robots)
     assert result.takeovers == ()
     assert result.coverage_time is not None
@@ -258,7 +258,7 @@ def test_takeover_of_a_robot_dead_at_start_walks_its_whole_region() -> None:
     grid = OccupancyGrid(np.ones((4, 8), dtype=bool))
     area = work_area(grid, ((0, 0), (0, 7)))
     plan = balanced_plan(area, seed=0)
-    result = simulate_failures(plan, {1: 0})
+    result = simulate_failures(plan, {1: 0}, recovery="takeover")
     assert result.complete
     survivor = result.walks[0]
     left = plan.robots[1].path[1:]  # the dead robot covered only its start
@@ -274,11 +274,11 @@ def test_takeover_rejects_bad_failures() -> None:
     grid = OccupancyGrid(np.ones((4, 4), dtype=bool))
     plan = balanced_plan(work_area(grid, ((0, 0), (3, 3))), seed=0)
     with pytest.raises(UnsupportedPlanError, match="no such robot"):
-        simulate_failures(plan, {5: 1})
+        simulate_failures(plan, {5: 1}, recovery="takeover")
     with pytest.raises(UnsupportedPlanError, match=">= 0"):
-        simulate_failures(plan, {0: -1})
+        simulate_failures(plan, {0: -1}, recovery="takeover")
     with pytest.raises(UnsupportedPlanError, match="negative"):
-        simulate_failures(plan, {}, detection_delay=-1)
+        simulate_failures(plan, {}, detection_delay=-1, recovery="takeover")
 
 
 def test_shared_cell_division_is_always_found() -> None:
@@ -305,5 +305,6 @@ def test_the_registrys_balanced_plan_is_never_worse_than_opt_on_the_same_tree(se
     assert plan.makespan == min(opt.makespan, balanced_plan(area, seed=seed).makespan)
     if plan.notes[0].startswith(OPT_KEPT):
         assert [rp.path for rp in plan.robots] == [rp.path for rp in opt.robots]
-    result = simulate_failures(plan, {plan.robots[1].robot: 9}, detection_delay=1)
+    result = simulate_failures(plan, {plan.robots[1].robot: 9}, detection_delay=1,
+                               recovery="takeover")
     assert result.complete

@@ -132,7 +132,8 @@ def check_offline(heard: Heard, case: OfflineCase, grid: OccupancyGrid,
     area = reachable(grid, case.starts)
     assert np.array_equal(heard.covered(area.shape), area), "a reachable sub-cell is missed"
     moves = {v: heard.reported[v] for v in victims}
-    semantics = simulate_failures(case.plan, lockstep_failures(case.plan, moves))
+    semantics = simulate_failures(case.plan, lockstep_failures(case.plan, moves),
+                                  recovery="takeover")
     assert semantics.complete
     for robot, want in zip(semantics.robots, semantics.walks, strict=True):
         got = heard.walks[robot]
