@@ -76,7 +76,31 @@ class Hardware:
                                 f"{reply.message}")
 
     async def step_to(self, target: SubCell) -> None:
-        """Turn towards the 4-adjacent sub-cell ``target`` and drive into it."""
+        """Turn towards the 4-adjacent sub-cell ``target`` and drive into it, retrying a
+        bump for a while (the takeover's walks: nothing else moves the body in the way)."""
+        await self._turn_to(target)
+        await self._forward(target)
+
+    async def try_step_to(self, target: SubCell) -> bool:
+        """Turn towards the 4-adjacent sub-cell ``target`` and drive into it once: False
+        when a body (or anything) was in the way (the deconflicted walks decide again)."""
+        await self._turn_to(target)
+        reply = await self.link.motion("forward", standing_on(target))
+        if reply.status == "bumped":
+            self.state.bumps += 1
+            return False
+        self._arrived(reply, target)
+        return True
+
+    def _arrived(self, reply: HwReply, target: SubCell) -> None:
+        if reply.status != "ok":
+            raise HardwareError(f"robot {self.robot}: forward into {target} answered "
+                                f"{reply.status}: {reply.message}")
+        if (reply.pose[0], reply.pose[1]) != tuple(target):
+            raise HardwareError(f"robot {self.robot}: drove to {reply.pose[:2]}, "
+                                f"expected {target}")
+
+    async def _turn_to(self, target: SubCell) -> None:
         pose = self.state.pose
         if pose is None:
             raise HardwareError(f"robot {self.robot}: pose unknown; read it first")
@@ -88,7 +112,6 @@ class Hardware:
         for action in turns(pose[2], heading):
             want = (self._heading() + (1 if action == "turn_right" else -1)) % 4
             self._check(await self.link.motion(action, facing(want)), action)
-        await self._forward(target)
 
     def _heading(self) -> int:
         assert self.state.pose is not None
