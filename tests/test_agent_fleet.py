@@ -82,7 +82,9 @@ class Fleet:
                     # SIGKILLs are seen through the liveliness token within ~0.1 s and hangs
                     # through the token's lease; a long heartbeat timeout only keeps a loaded
                     # test machine from declaring a slow but live agent dead.
-                    "--start-timeout", "30", "--dead-after", "10", "--linger", "0.5", *extra)
+                    "--start-timeout", "30", "--dead-after", "10", "--linger", "0.5",
+                    # the papers' takeover semantics are what these tests check
+                    "--recovery", "takeover", *extra)
 
     def start(self, time_scale: float, *agent_args: str) -> None:
         self.simhw = start_simhw(self.world, STARTS, self.router, self.mission, time_scale)

@@ -93,7 +93,7 @@ def test_a_fleet_over_two_hosts_survives_a_cut_between_them(tmp_path: Path) -> N
             for robot, host in ((0, near), (1, near), (2, far), (3, far)):
                 procs.start(f"agent-{robot}", host, "agent", "--id", str(robot), "--algo",
                             "opt", *world, "--tree", "dfs", "--seed", "0", "--robots", "4",
-                            "--connect", host.endpoint, *link)
+                            "--recovery", "takeover", "--connect", host.endpoint, *link)
             _wait_for(tmp_path / "agent-2.log", "driving", procs.started["agent-2"], 60)
             time.sleep(0.5)
             far.cut()

@@ -112,8 +112,7 @@ class OfflineRunner:
         """The deconfliction's counts, for the "completed" event (empty without it)."""
         if self.lane is None:
             return ""
-        c = self.lane.counts
-        return f"{c.waits} waits, {c.detours} detours, {c.bumps} bumps"
+        return self.lane.counts.describe()
 
     async def _drive(self, action: MoveTo | None) -> bool:
         """One deconflicted step towards ``action`` (None: only make way); True if the body

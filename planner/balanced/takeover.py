@@ -15,13 +15,13 @@ import numpy as np
 
 from planner.balanced.machine import BalancedRobot, validate_replay
 from planner.offline.lockstep import TakeoverResult, replanner, replay
-from planner.offline.rebalance import Recovery
+from planner.offline.rebalance import DEFAULT_RECOVERY, Recovery
 from planner.types import IntArray, Plan
 
 
 def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
                       detection_delay: int = 0,
-                      recovery: Recovery = "rebalance") -> TakeoverResult:
+                      recovery: Recovery = DEFAULT_RECOVERY) -> TakeoverResult:
     """Replay ``plan`` when robot ``r`` fails at time ``failures[r]`` (after that many moves);
     ``recovery`` as in planner.offline.lockstep.simulate_failures.
 

@@ -22,7 +22,14 @@ from planner.offline.machine import (
     TakeoverDecision,
     validate_replay,
 )
-from planner.offline.rebalance import Recovery, Replan, Survivor, plan_order, rebalance
+from planner.offline.rebalance import (
+    DEFAULT_RECOVERY,
+    Recovery,
+    Replan,
+    Survivor,
+    plan_order,
+    rebalance,
+)
 from planner.offline.traffic import Go, Peer, Traffic, TrafficCounts
 from planner.types import BoolArray, Cycle, IntArray, Plan, SubCell
 
@@ -84,7 +91,7 @@ class TakeoverResult:
 
 def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
                       detection_delay: int = 0,
-                      recovery: Recovery = "rebalance") -> TakeoverResult:
+                      recovery: Recovery = DEFAULT_RECOVERY) -> TakeoverResult:
     """Replay ``plan`` when robot ``r`` fails at time ``failures[r]`` (after that many moves).
 
     ``recovery`` "rebalance" (the default) re-plans at each known death

@@ -27,6 +27,7 @@ Places are cycle indices of ``cycle`` (the offline machines' key space).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -76,6 +77,21 @@ class TrafficCounts:
 
     def as_dict(self) -> dict[str, int]:
         return {"waits": self.waits, "detours": self.detours, "bumps": self.bumps}
+
+    def describe(self) -> str:
+        """The counts as the offline agent's "completed" event states them (:func:`parse`)."""
+        return f"{self.waits} waits, {self.detours} detours, {self.bumps} bumps"
+
+    @staticmethod
+    def parse(text: str) -> TrafficCounts | None:
+        """The counts :meth:`describe` wrote somewhere in ``text``; None when absent."""
+        found = _COUNTS.search(text)
+        if found is None:
+            return None
+        return TrafficCounts(*(int(g) for g in found.groups()))
+
+
+_COUNTS = re.compile(r"(\d+) waits, (\d+) detours, (\d+) bumps")
 
 
 def neighbours(cycle: Cycle, index: int) -> list[int]:
