@@ -2,8 +2,10 @@
 
 Each command is a query on ``hw/<r>/cmd`` answered when the motion has finished in sim time.
 Stepping to a neighbouring sub-cell turns the body the short way round and drives one
-sub-cell forward. A bump is retried for a while (a dead body may not have vanished yet)
-before it counts as a hardware failure. A command refused because this robot's incarnation
+sub-cell forward. ``step_to`` retries a bump for a while (a dead body may not have vanished
+yet) before it counts as a hardware failure: the takeover's walks. ``try_step_to`` tries
+once: the deconflicted walks of ``--recovery rebalance`` decide again after a bump
+(agent.offline.runner). A command refused because this robot's incarnation
 is stale means the robot was declared dead: FencedError.
 
 Replies can be lost (a router restart drops queries in flight): the retry policy, shared
