@@ -104,7 +104,7 @@ def takeover_line(plans: list[Plan], failures: int, seed: int) -> str:
     for plan in plans:
         dead = rng.choice(plan.k, size=min(failures, plan.k - 1), replace=False)
         when = {int(r): int(rng.integers(0, plan.makespan + 1)) for r in dead}
-        result = simulate_failures(plan, when)
+        result = simulate_failures(plan, when, recovery="takeover")
         assert result.complete, "takeover left sub-cells uncovered"
         assert result.coverage_time is not None
         ratios.append(result.coverage_time / max(1, plan.makespan))

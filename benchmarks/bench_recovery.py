@@ -17,6 +17,11 @@ With ``--half``, k/2 robots (seeded choice) die at seeded random steps of the fa
 makespan instead, and coverage time is divided by the ideal: fault-free makespan plus the
 dead robots' remaining moves shared among the survivors.
 
+The takeover is replayed as the papers do (robots as points); the re-balanced runs have
+bodies (one per sub-cell, deconflicted by planner.offline.traffic), and ``w/d/b`` is their
+waits, detours and bumps summed over the robots of one run, mean over the runs (and the
+largest sum of the three in one run).
+
 Instances: the builtin world office with random starts from each seed, and generated
 20 x 30 coarse grids (2400 sub-cells) with 0, 60 and 120 random blocked cells (the work-area
 is the largest component), random starts; nothing is tuned on a fixed set.
@@ -73,8 +78,22 @@ def step_at(result: TakeoverResult, fraction: float) -> int:
     return int(times[max(math.ceil(fraction * times.size) - 1, 0)])
 
 
+def traffic(result: TakeoverResult) -> tuple[int, int, int]:
+    """Waits, detours and bumps of one run, summed over its robots."""
+    return (sum(c.waits for c in result.traffic), sum(c.detours for c in result.traffic),
+            sum(c.bumps for c in result.traffic))
+
+
+def traffic_cell(rows: list[tuple[float, ...]]) -> str:
+    """Mean waits/detours/bumps per run (the last three columns of ``rows``), and the most
+    of all three in one run."""
+    w, d, b = (statistics.mean(r[i] for r in rows) for i in (-3, -2, -1))
+    return f"{w:.1f}/{d:.1f}/{b:.1f} (≤{max(int(sum(r[-3:])) for r in rows)})"
+
+
 def measure(algo: str, area: WorkArea, seed: int, fraction: float) -> list[tuple[float, ...]]:
-    """(takeover, rebalance, ideal) ratios to the fault-free makespan, one row per death."""
+    """(takeover, rebalance, ideal) ratios to the fault-free makespan and the rebalanced
+    run's waits, detours and bumps, one row per death."""
     plan = make(algo, area, seed)
     replay = algorithm(algo).load_lockstep()
     free_run = replay(plan, {})
@@ -84,12 +103,12 @@ def measure(algo: str, area: WorkArea, seed: int, fraction: float) -> list[tuple
     for rp in plan.robots:
         left = max(rp.steps - at, 0)
         ideal = base + left / (plan.k - 1)
-        out = []
+        out: list[float] = []
         for recovery in ("takeover", "rebalance"):
             result = replay(plan, {rp.robot: at}, recovery=recovery)
             assert result.complete, (algo, area.grid.name, rp.robot, recovery)
             out.append(result.coverage_time / base)
-        rows.append((*out, ideal / base))
+        rows.append((*out, ideal / base, *traffic(result)))
     return rows
 
 
@@ -103,27 +122,28 @@ def measure_half(algo: str, area: WorkArea, seed: int) -> list[tuple[float, ...]
     left = sum(max(plan.robots[int(i)].steps - failures[plan.robots[int(i)].robot], 0)
                for i in dead)
     ideal = plan.makespan + left / (plan.k - len(dead))
-    out = []
+    out: list[float] = []
     for recovery in ("takeover", "rebalance"):
         result = replay(plan, failures, recovery=recovery)
         assert result.complete, (algo, area.grid.name, failures, recovery)
         out.append(result.coverage_time / ideal)
-    return [tuple(out)]
+    return [(*out, *traffic(result))]
 
 
 def main_half(args: argparse.Namespace) -> None:
     worlds = args.worlds.split(",")
     print(f"k/2 deaths at random steps, k = {args.k}, {args.seeds} seeds; coverage time / "
           f"ideal (fault-free + the dead robots' remaining moves shared by the survivors)")
-    print(f"{'world':<18} {'algo':<9} {'takeover':>15} {'rebalance':>15}")
+    print(f"{'world':<18} {'algo':<9} {'takeover':>15} {'rebalance':>15} {'w/d/b':>18}")
     for algo in args.algos.split(","):
         by_world: dict[str, list[tuple[float, ...]]] = {}
         for name, area, seed in instances(worlds, args.k, args.seeds):
             by_world.setdefault(name, []).extend(measure_half(algo, area, seed))
         for name, rows in by_world.items():
-            take, rebal = zip(*rows, strict=True)
+            take, rebal = [r[0] for r in rows], [r[1] for r in rows]
             print(f"{name:<18} {algo:<9} {statistics.mean(take):>6.2f} (≤{max(take):.2f}) "
-                  f"{statistics.mean(rebal):>6.2f} (≤{max(rebal):.2f})")
+                  f"{statistics.mean(rebal):>6.2f} (≤{max(rebal):.2f}) "
+                  f"{traffic_cell(rows):>18}")
 
 
 def main() -> None:
@@ -144,7 +164,7 @@ def main() -> None:
     print(f"one death at {args.coverage:.0%} coverage, k = {args.k}, {args.seeds} seeds, "
           f"each robot in turn; coverage time / fault-free makespan")
     print(f"{'world':<18} {'algo':<9} {'fault-free':>10} {'takeover':>15} {'rebalance':>15} "
-          f"{'ideal':>6} {'s':>5}")
+          f"{'ideal':>6} {'w/d/b':>18} {'s':>5}")
     for algo in args.algos.split(","):
         by_world: dict[str, list[tuple[float, ...]]] = {}
         base: dict[str, list[int]] = {}
@@ -154,11 +174,11 @@ def main() -> None:
             base.setdefault(name, []).append(make(algo, area, seed).makespan)
         spent = (time.perf_counter() - started) / max(len(by_world), 1)
         for name, rows in by_world.items():
-            take, rebal, ideal = zip(*rows, strict=True)
+            take, rebal, ideal = ([r[i] for r in rows] for i in range(3))
             print(f"{name:<18} {algo:<9} {statistics.mean(base[name]):>10.0f} "
                   f"{statistics.mean(take):>6.2f} (≤{max(take):.2f}) "
                   f"{statistics.mean(rebal):>6.2f} (≤{max(rebal):.2f}) "
-                  f"{statistics.mean(ideal):>6.2f} {spent:>5.1f}")
+                  f"{statistics.mean(ideal):>6.2f} {traffic_cell(rows):>18} {spent:>5.1f}")
 
 
 if __name__ == "__main__":

@@ -43,7 +43,7 @@ from deploy.settings import (
 )
 from deploy.supervisor import run_recorded
 from planner.algorithms import Family, algorithm, choices_help, names
-from planner.offline.rebalance import RECOVERIES
+from planner.offline.rebalance import DEFAULT_RECOVERY, RECOVERIES
 from planner.trees import ALL_TREE_KINDS
 
 # what runs as a fleet on a grid: every offline and on-line algorithm that declares a fleet
@@ -60,11 +60,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"{choices_help(ALGOS)} (default opt)")
     parser.add_argument("--tree", choices=ALL_TREE_KINDS, default="dfs",
                         help="spanning tree kind (default dfs)")
-    parser.add_argument("--recovery", choices=RECOVERIES, default="takeover",
-                        help="offline algorithms, after a death: takeover (the papers': the "
-                             "robot behind walks the dead one's rest after its own) or "
-                             "rebalance (the survivors re-split the remaining work) "
-                             "(default takeover)")
+    parser.add_argument("--recovery", choices=RECOVERIES, default=None,
+                        help="offline algorithms, after a death: rebalance (the survivors "
+                             "re-split the remaining work; crossing walks wait or step "
+                             "aside) or takeover (the papers': the robot behind walks the "
+                             f"dead one's rest after its own) (default {DEFAULT_RECOVERY})")
     parser.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
                         help="map pixels per sub-cell side (default 1)")
     parser.add_argument("--starts", metavar="'r,c;r,c;...'",
@@ -138,12 +138,13 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
         require_extra()
     lease_ms, dead_after = liveness(args.robots, args.lease_ms, args.dead_after, cores)
     mission = args.mission or unique_mission()
-    if args.recovery != "takeover" and algorithm(args.algo).family is not Family.OFFLINE:
+    if args.recovery is not None and algorithm(args.algo).family is not Family.OFFLINE:
         raise UsageError(f"--recovery {args.recovery} needs an offline algorithm, not "
                          f"{args.algo}")
     return UpSettings(
         robots=args.robots, world=args.world, cell_size=args.cell_size, starts=args.starts,
-        algo=args.algo, tree=args.tree, recovery=args.recovery, seed=args.seed,
+        algo=args.algo, tree=args.tree, recovery=args.recovery or DEFAULT_RECOVERY,
+        seed=args.seed,
         time_scale=args.time_scale, kills=kills, mission=mission,
         run_dir=Path(args.run_dir or default_run_dir(mission)),
         listen=args.listen, connect=args.connect, lease_ms=lease_ms, dead_after=dead_after,

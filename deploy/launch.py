@@ -37,6 +37,7 @@ from deploy.security import FleetSecurity
 from deploy.settings import MissionSetup, UpSettings
 from deploy.summary import MissionTracker, format_summary, summarize
 from deploy.supervisor import KillSchedule, Supervisor
+from planner.offline.rebalance import DEFAULT_RECOVERY
 
 SIMHW_READY = "simhw ready"
 SUB_BUFFER = 65536  # messages of every kind, as a monitor's feed (deploy.monitor.live)
@@ -126,7 +127,7 @@ class Launcher:
     def _recovery(self) -> list[str]:
         """--recovery for the agents, only when not the default (ORMSTC agents have none)."""
         recovery = self.settings.recovery
-        return [] if recovery == "takeover" else ["--recovery", recovery]
+        return [] if recovery == DEFAULT_RECOVERY else ["--recovery", recovery]
 
     def children(self) -> list[Child]:
         return self.supervisor.children

@@ -18,6 +18,7 @@ from planner.algorithms import Family, algorithm
 from planner.geometry import cell_of
 from planner.grid import coarsen, validate_starts, work_area
 from planner.maps import resolve_world
+from planner.offline.rebalance import DEFAULT_RECOVERY
 from planner.placement import parse_starts, random_starts
 from planner.trees import build_tree
 from planner.types import BoolArray, OccupancyGrid, SubCell
@@ -149,7 +150,7 @@ class UpSettings:
     starts: str | None = None  # "r,c;r,c;..." as given, or None for random starts
     algo: str = "opt"
     tree: str = "dfs"
-    recovery: str = "takeover"  # offline agents' --recovery
+    recovery: str = DEFAULT_RECOVERY  # offline agents' --recovery
     seed: int = 0
     time_scale: float = DEFAULT_TIME_SCALE
     kills: tuple[KillOrder, ...] = ()

@@ -66,6 +66,9 @@ class MissionSummary:
     takeovers: int
     planned_makespan: int | None
     outcome: str
+    # deconflicted walks (--recovery rebalance): waits, detours, bumps summed over the
+    # robots that stated them on completion, and how many did; None without any
+    traffic: tuple[int, int, int, int] | None = None
 
     @property
     def coverage(self) -> float:
@@ -268,7 +271,16 @@ def summarize(tracker: MissionTracker, *, mission: str, world: str, algo: str,
         makespan_moves=figures.makespan_moves, total_moves=figures.total_moves,
         revisited=figures.revisits, sim_seconds=figures.sim_seconds, wall_seconds=wall_seconds,
         robots_lost=tuple((v.robot, v.lost) for v in views if v.lost),
-        takeovers=len(tracker.takeovers), planned_makespan=planned_makespan, outcome=outcome)
+        takeovers=len(tracker.takeovers), planned_makespan=planned_makespan, outcome=outcome,
+        traffic=_traffic(tracker.model))
+
+
+def _traffic(model: FleetModel) -> tuple[int, int, int, int] | None:
+    counts = [v.traffic for v in model.robots.values() if v.traffic is not None]
+    if not counts:
+        return None
+    return (sum(c.waits for c in counts), sum(c.detours for c in counts),
+            sum(c.bumps for c in counts), len(counts))
 
 
 def format_summary(s: MissionSummary) -> str:
@@ -284,5 +296,8 @@ def format_summary(s: MissionSummary) -> str:
         f"({s.total_moves} moves in all, {s.revisited} revisits)",
         f"  robots lost {len(s.robots_lost)}: {lost}",
         f"  takeovers   {s.takeovers}",
+        *([] if s.traffic is None else [
+            f"  traffic     {s.traffic[0]} waits, {s.traffic[1]} detours, {s.traffic[2]} "
+            f"bumps (as {s.traffic[3]} robots stated them on completion)"]),
         f"  wall time   {s.wall_seconds:.1f} s",
     ])

@@ -50,12 +50,14 @@ def _plans() -> Iterator[tuple[str, object]]:
                     key = f"{algo}/{world}/k{k}/{tree_kind}"
                     yield key, [list(map(list, rp.path)) for rp in plan.robots]
                     failures = {plan.robots[1].robot: 5, plan.robots[-1].robot: 17}
-                    result = simulate_failures(plan, failures, detection_delay=2)
+                    result = simulate_failures(plan, failures, detection_delay=2,
+                                               recovery="takeover")
                     yield key + "/takeover", [list(map(list, w)) for w in result.walks]
             plan = balanced_plan(area, seed=seed)
             key = f"balanced/{world}/k{k}"
             yield key, [list(map(list, rp.path)) for rp in plan.robots]
-            result = balanced_failures(plan, {plan.robots[0].robot: 7}, detection_delay=1)
+            result = balanced_failures(plan, {plan.robots[0].robot: 7}, detection_delay=1,
+                                       recovery="takeover")
             yield key + "/takeover", [list(map(list, w)) for w in result.walks]
 
 

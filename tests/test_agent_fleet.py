@@ -82,7 +82,9 @@ class Fleet:
                     # SIGKILLs are seen through the liveliness token within ~0.1 s and hangs
                     # through the token's lease; a long heartbeat timeout only keeps a loaded
                     # test machine from declaring a slow but live agent dead.
-                    "--start-timeout", "30", "--dead-after", "10", "--linger", "0.5", *extra)
+                    "--start-timeout", "30", "--dead-after", "10", "--linger", "0.5",
+                    # the papers' takeover semantics are what these tests check
+                    "--recovery", "takeover", *extra)
 
     def start(self, time_scale: float, *agent_args: str) -> None:
         self.simhw = start_simhw(self.world, STARTS, self.router, self.mission, time_scale)
@@ -235,7 +237,7 @@ def lockstep_failures(plan: Plan, moves: dict[int, int]) -> dict[int, int]:
     horizon = 4 * plan.n
     for robot in sorted(moves, key=moves.__getitem__):
         for when in range(moves[robot], horizon):
-            result = simulate_failures(plan, {**failures, robot: when})
+            result = simulate_failures(plan, {**failures, robot: when}, recovery="takeover")
             if len(result.walks[robot]) - 1 == moves[robot]:
                 failures[robot] = when
                 break
@@ -283,7 +285,8 @@ async def test_fleet_survives_sigkills_as_the_takeover_semantics_say(
               f"plan {[rp.steps for rp in fleet.plan.robots]}")
         area = area_mask(world)
         assert np.array_equal(covered_mask(fleet, area.shape), area)
-        semantics = simulate_failures(fleet.plan, lockstep_failures(fleet.plan, moves))
+        semantics = simulate_failures(fleet.plan, lockstep_failures(fleet.plan, moves),
+                                      recovery="takeover")
         assert semantics.complete
         assert_walks_follow(fleet, semantics.walks, dead=set(victims))
         # Takeovers that found nothing left depend on timing; those that walked do not —

@@ -99,7 +99,7 @@ def test_robot_boxed_in_a_dead_end_walks_out() -> None:
     tree = build_tree(area.cells, "dfs", seed=0)
     registry = algorithm("balanced").load_plan()(area, tree, "balanced", 0)
     assert make_plan(area, tree, "opt").makespan == bound == registry.makespan
-    result = simulate_failures(plan, {0: 1})
+    result = simulate_failures(plan, {0: 1}, recovery="takeover")
     assert result.complete
 
 
@@ -225,7 +225,7 @@ def test_takeover_covers_everything_with_up_to_k_minus_1_failures(
     horizon = plan.makespan + 3
     failures = {r: data.draw(st.integers(0, horizon)) for r in dead}
     delay = data.draw(st.integers(0, 4))
-    result = simulate_failures(plan, failures, detection_delay=delay)
+    result = simulate_failures(plan, failures, detection_delay=delay, recovery="takeover")
     assert result.complete
     check_coverage(result.covered, area)
     for robot, walk in zip(result.robots, result.walks, strict=True):
@@ -248,7 +248,7 @@ def test_takeover_without_failures_is_the_plan(
     grid, starts, seed = case
     area = work_area(grid, starts)
     plan = balanced_plan(area, seed=seed)
-    result = simulate_failures(plan, {})
+    result = simulate_failures(plan, {}, recovery="takeover")
     assert result.walks == tuple(rp.path for rp in plan.robots)
     assert result.takeovers == ()
     assert result.coverage_time is not None
@@ -265,7 +265,7 @@ def test_takeover_of_a_robot_dead_at_start_walks_its_whole_region() -> None:
     grid = OccupancyGrid(np.ones((4, 8), dtype=bool))
     area = work_area(grid, ((0, 0), (0, 7)))
     plan = balanced_plan(area, seed=0)
-    result = simulate_failures(plan, {1: 0})
+    result = simulate_failures(plan, {1: 0}, recovery="takeover")
     assert result.complete
     survivor = result.walks[0]
     left = plan.robots[1].path[1:]  # the dead robot covered only its start
@@ -281,11 +281,11 @@ def test_takeover_rejects_bad_failures() -> None:
     grid = OccupancyGrid(np.ones((4, 4), dtype=bool))
     plan = balanced_plan(work_area(grid, ((0, 0), (3, 3))), seed=0)
     with pytest.raises(UnsupportedPlanError, match="no such robot"):
-        simulate_failures(plan, {5: 1})
+        simulate_failures(plan, {5: 1}, recovery="takeover")
     with pytest.raises(UnsupportedPlanError, match=">= 0"):
-        simulate_failures(plan, {0: -1})
+        simulate_failures(plan, {0: -1}, recovery="takeover")
     with pytest.raises(UnsupportedPlanError, match="negative"):
-        simulate_failures(plan, {}, detection_delay=-1)
+        simulate_failures(plan, {}, detection_delay=-1, recovery="takeover")
 
 
 def test_shared_cell_division_is_always_found() -> None:
@@ -312,5 +312,6 @@ def test_the_registrys_balanced_plan_is_never_worse_than_opt_on_the_same_tree(se
     assert plan.makespan == min(opt.makespan, balanced_plan(area, seed=seed).makespan)
     if plan.notes[0].startswith(OPT_KEPT):
         assert [rp.path for rp in plan.robots] == [rp.path for rp in opt.robots]
-    result = simulate_failures(plan, {plan.robots[1].robot: 9}, detection_delay=1)
+    result = simulate_failures(plan, {plan.robots[1].robot: 9}, detection_delay=1,
+                               recovery="takeover")
     assert result.complete

@@ -48,6 +48,7 @@ from agent.offline.plan import compute_plan
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import WorldState, world_visits
+from planner.algorithms import Family, algorithm
 from planner.maps import resolve_world
 from planner.offline.lockstep import TakeoverResult, simulate_failures
 from planner.types import OccupancyGrid, Plan, SubCell
@@ -69,6 +70,8 @@ TIMEOUT = 60.0  # a guard against a hung test on a loaded machine, not a timing 
 # leases keep a CPU-starved but live agent from being declared dead (docs/operations.md).
 AGENT_ARGS = ("--start-timeout", "30", "--dead-after", "10", "--linger", "0.5")
 UP_ARGS = ("--plain", "--stall-timeout", "30", "--lease-ms", "5000", "--dead-after", "5")
+# The offline cases check the papers' takeover semantics: they name that recovery.
+TAKEOVER = ("--recovery", "takeover")
 
 
 # ---- scenarios --------------------------------------------------------------------------
@@ -132,7 +135,8 @@ def check_offline(heard: Heard, case: OfflineCase, grid: OccupancyGrid,
     area = reachable(grid, case.starts)
     assert np.array_equal(heard.covered(area.shape), area), "a reachable sub-cell is missed"
     moves = {v: heard.reported[v] for v in victims}
-    semantics = simulate_failures(case.plan, lockstep_failures(case.plan, moves))
+    semantics = simulate_failures(case.plan, lockstep_failures(case.plan, moves),
+                                  recovery="takeover")
     assert semantics.complete
     for robot, want in zip(semantics.robots, semantics.walks, strict=True):
         got = heard.walks[robot]
@@ -213,7 +217,7 @@ async def test_offline_fleet_survives_seeded_sigkills_as_the_semantics_say(
     heard = Heard()
     await listen(bus, heard)
     try:
-        fleet.start(case.algo, 120, *AGENT_ARGS)
+        fleet.start(case.algo, 120, *AGENT_ARGS, *TAKEOVER)
         await fleet.finish(set(range(K)) - victims, TIMEOUT)
         assert not due, f"robots {sorted(due)} never reached their kill point"
         assert all(fleet.agents[v].wait(5) == -signal.SIGKILL for v in victims)
@@ -263,7 +267,8 @@ def up_argv(world: Path, starts: Sequence[SubCell], algo: str, router: str, miss
     return mstc("up", "-n", str(len(starts)), "--world", str(world), "--algo", algo,
                 "--starts", ";".join(f"{r},{c}" for r, c in starts),
                 "--time-scale", str(time_scale), "--connect", router, "--mission", mission,
-                "--run-dir", str(run_dir), *UP_ARGS, *extra)
+                "--run-dir", str(run_dir), *UP_ARGS,
+                *(TAKEOVER if algorithm(algo).family is Family.OFFLINE else ()), *extra)
 
 
 def start_up(argv: list[str]) -> subprocess.Popen[str]:

@@ -119,8 +119,8 @@ def test_a_secured_fleet_over_two_hosts_survives_a_cut_between_them(tmp_path: Pa
             for robot, host in ((0, near), (1, near), (2, far), (3, far)):
                 procs.start(f"agent-{robot}", host, "agent", "--id", str(robot), "--algo",
                             "opt", *world, "--tree", "dfs", "--seed", "0", "--robots",
-                            str(ROBOTS), "--connect", host.tls_endpoint, *link,
-                            *secured[f"robot_{robot}"])
+                            str(ROBOTS), "--recovery", "takeover", "--connect",
+                            host.tls_endpoint, *link, *secured[f"robot_{robot}"])
             _wait_for(tmp_path / "agent-2.log", "driving", procs.started["agent-2"], 60)
             time.sleep(0.5)
             far.cut()

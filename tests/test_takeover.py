@@ -105,7 +105,7 @@ def plans(draw: st.DrawFn, backtracking: bool = True) -> Plan:
 
 def assert_consistent(plan: Plan, failures: dict[int, int], delay: int = 0) -> None:
     """Invariants of any replay, failures or not."""
-    result = simulate_failures(plan, failures, detection_delay=delay)
+    result = simulate_failures(plan, failures, detection_delay=delay, recovery="takeover")
     for rp, executed, moves in zip(plan.robots, result.walks, result.moves, strict=True):
         check_path_moves(executed)
         assert executed[0] == rp.start
@@ -129,7 +129,7 @@ def assert_consistent(plan: Plan, failures: dict[int, int], delay: int = 0) -> N
 @settings(max_examples=60, deadline=None)
 @given(plan=plans())
 def test_no_failures_replays_the_plan(plan: Plan) -> None:
-    result = simulate_failures(plan, {})
+    result = simulate_failures(plan, {}, recovery="takeover")
     assert result.complete
     assert result.walks == tuple(rp.path for rp in plan.robots)
     assert result.makespan == plan.makespan
@@ -143,7 +143,7 @@ def test_no_failures_replays_the_plan(plan: Plan) -> None:
 @settings(max_examples=40, deadline=None)
 @given(plan=plans(backtracking=False))
 def test_no_failures_nonbacktracking_covers_each_sub_cell_once(plan: Plan) -> None:
-    result = simulate_failures(plan, {})
+    result = simulate_failures(plan, {}, recovery="takeover")
     on = plan.cycle.index >= 0
     assert (result.visits[on] == 1).all()
     assert result.coverage_time == plan.makespan
@@ -157,7 +157,7 @@ def test_up_to_k_minus_one_failures_still_complete(plan: Plan, data: st.DataObje
     assume(k >= 2)
     dead = data.draw(st.lists(st.integers(0, k - 1), min_size=1, max_size=k - 1, unique=True))
     failures = {r: data.draw(st.integers(0, plan.makespan + 2)) for r in dead}
-    result = simulate_failures(plan, failures, detection_delay=delay)
+    result = simulate_failures(plan, failures, detection_delay=delay, recovery="takeover")
     assert result.complete
     assert {t.dead for t in result.takeovers} <= set(dead)
     assert all(t.taker not in failures or t.time < failures[t.taker]
@@ -171,7 +171,7 @@ def test_all_robots_failing_before_their_end_is_incomplete(plan: Plan,
                                                            data: st.DataObject) -> None:
     assume(any(rp.steps > 0 for rp in plan.robots))
     failures = {rp.robot: data.draw(st.integers(0, max(rp.steps - 1, 0))) for rp in plan.robots}
-    result = simulate_failures(plan, failures)
+    result = simulate_failures(plan, failures, recovery="takeover")
     assert not result.complete
     assert result.takeovers == ()
     assert_consistent(plan, failures)
@@ -193,7 +193,7 @@ def test_single_failure_matches_the_hand_derived_timing(plan: Plan, data: st.Dat
     order = order_robots(plan.cycle, [rp.start for rp in plan.robots])
     i = order[(order.index(j) - 1) % k]
     steps = [rp.steps for rp in plan.robots]
-    result = simulate_failures(plan, {j: f}, detection_delay=delay)
+    result = simulate_failures(plan, {j: f}, detection_delay=delay, recovery="takeover")
     assert result.complete
     if f >= steps[j]:
         assert result.walks == tuple(rp.path for rp in plan.robots)
@@ -212,7 +212,7 @@ def test_chain_takeover_of_two_dead_neighbours() -> None:
     cycle = stc_cycle(build_tree(np.ones((2, 3), dtype=bool), "kruskal", seed=0))
     assert cycle.n == 24
     plan = nb_plan(cycle, [0, 6, 10, 18])  # sections of 6, 4, 8 and 6 sub-cells
-    result = simulate_failures(plan, {1: 0, 2: 0})
+    result = simulate_failures(plan, {1: 0, 2: 0}, recovery="takeover")
     assert result.complete
     # robot 0 walks its 5 moves, then robot 1's section (4) and robot 2's section (8)
     assert result.moves == (5 + 4 + 8, 0, 0, 5)
@@ -235,7 +235,7 @@ def test_watcher_at_the_cw_end_rewalks_its_own_region() -> None:
     r1_legs = (Leg(Direction.CCW, 7),)
     r1 = RobotPlan(1, cycle.at(8), 8, r1_legs, walk(cycle, 8, r1_legs))
     plan = Plan("bt", cycle, (r0, r1))
-    result = simulate_failures(plan, {1: 0})
+    result = simulate_failures(plan, {1: 0}, recovery="takeover")
     assert result.complete
     assert result.moves == (11 + 15, 0)  # 0 -> 15 along the cycle after its own 11 moves
     assert result.coverage_time == 26
@@ -246,7 +246,8 @@ def test_watcher_at_the_cw_end_rewalks_its_own_region() -> None:
 def test_failure_after_finishing_needs_no_takeover_moves() -> None:
     cycle = stc_cycle(build_tree(np.ones((2, 2), dtype=bool), "dfs", seed=None))
     plan = nb_plan(cycle, [0, 4, 8])  # sections of 4, 4 and 8
-    result = simulate_failures(plan, {1: 3})  # robot 1 finishes at 3, then dies
+    # robot 1 finishes at 3, then dies
+    result = simulate_failures(plan, {1: 3}, recovery="takeover")
     assert result.walks == tuple(rp.path for rp in plan.robots)
     # robot 0 finished at 3 and learns of the death at 3 while 8..15 is still open: it takes
     # over the (complete) role, moves nowhere and goes on watching robot 2
@@ -257,7 +258,7 @@ def test_everyone_but_one_dead_at_start() -> None:
     cycle = stc_cycle(build_tree(np.ones((3, 3), dtype=bool), "random", seed=7))
     n = cycle.n
     plan = nb_plan(cycle, [0, 5, 17, 30])
-    result = simulate_failures(plan, {0: 0, 1: 0, 3: 0})
+    result = simulate_failures(plan, {0: 0, 1: 0, 3: 0}, recovery="takeover")
     assert result.complete
     # robot 2 walks its own section, then on round the whole cycle to just before its start
     assert result.moves[2] == n - 1
@@ -268,7 +269,7 @@ def test_everyone_but_one_dead_at_start() -> None:
 def test_all_dead_at_start_is_incomplete() -> None:
     cycle = stc_cycle(build_tree(np.ones((2, 2), dtype=bool), "bfs", seed=1))
     plan = nb_plan(cycle, [0, 9])
-    result = simulate_failures(plan, {0: 0, 1: 0})
+    result = simulate_failures(plan, {0: 0, 1: 0}, recovery="takeover")
     assert not result.complete
     assert result.coverage_time is None
     assert int(result.covered.sum()) == 2
@@ -278,21 +279,21 @@ def test_rejections() -> None:
     cycle = stc_cycle(build_tree(np.ones((2, 2), dtype=bool), "dfs", seed=None))
     plan = nb_plan(cycle, [0, 8])
     with pytest.raises(UnsupportedPlanError, match="robot 5"):
-        simulate_failures(plan, {5: 1})
+        simulate_failures(plan, {5: 1}, recovery="takeover")
     with pytest.raises(UnsupportedPlanError, match="fails at time -1"):
-        simulate_failures(plan, {0: -1})
+        simulate_failures(plan, {0: -1}, recovery="takeover")
     fast = RobotPlan(0, plan.robots[0].start, 0, plan.robots[0].legs, plan.robots[0].path,
                      speed=2.0)
     with pytest.raises(UnsupportedPlanError, match=r"speed 2\.0"):
-        simulate_failures(Plan("x", cycle, (fast, plan.robots[1])), {})
+        simulate_failures(Plan("x", cycle, (fast, plan.robots[1])), {}, recovery="takeover")
     short = RobotPlan(0, plan.robots[0].start, 0, (Leg(Direction.CCW, 6),),
                       plan.robots[0].path[:7])
     with pytest.raises(UnsupportedPlanError, match="do not tile"):
-        simulate_failures(Plan("x", cycle, (short, plan.robots[1])), {})
+        simulate_failures(Plan("x", cycle, (short, plan.robots[1])), {}, recovery="takeover")
     wrong = RobotPlan(0, plan.robots[0].start, 0, plan.robots[0].legs,
                       tuple(reversed(plan.robots[0].path)))
     with pytest.raises(UnsupportedPlanError, match="does not follow its legs"):
-        simulate_failures(Plan("x", cycle, (wrong, plan.robots[1])), {})
+        simulate_failures(Plan("x", cycle, (wrong, plan.robots[1])), {}, recovery="takeover")
 
 
 def test_region_of_reads_both_legs() -> None:
@@ -318,11 +319,11 @@ def test_allocation_plans_survive_failures(cycle: Cycle, data: st.DataObject) ->
     positions = data.draw(st.lists(st.integers(0, n - 1), min_size=k, max_size=k, unique=True))
     algo = data.draw(st.sampled_from(ALGORITHMS))
     plan = plan_from_allocations(cycle, allocate(algo, n, positions))
-    clean = simulate_failures(plan, {})
+    clean = simulate_failures(plan, {}, recovery="takeover")
     assert clean.complete and clean.makespan == plan.makespan
     dead = data.draw(st.lists(st.integers(0, k - 1), min_size=1, max_size=k - 1, unique=True))
     failures = {r: data.draw(st.integers(0, plan.makespan)) for r in dead}
-    assert simulate_failures(plan, failures).complete
+    assert simulate_failures(plan, failures, recovery="takeover").complete
     assert_consistent(plan, failures)
 
 
@@ -350,8 +351,8 @@ def test_pipeline_plans_pass_check_plan_and_survive_failures(seed: int,
     plan = make_plan(area, build_tree(area.cells, data.draw(st.sampled_from(TREE_KINDS)),
                                       seed=seed), algo)
     check_plan(plan, area, max_visits=1 if algo == "nb" else 2)
-    clean = simulate_failures(plan, {})
+    clean = simulate_failures(plan, {}, recovery="takeover")
     assert clean.complete and clean.makespan == plan.makespan
     failures = {r: data.draw(st.integers(0, plan.makespan)) for r in range(k - 1)}
-    assert simulate_failures(plan, failures, detection_delay=2).complete
+    assert simulate_failures(plan, failures, detection_delay=2, recovery="takeover").complete
     assert_consistent(plan, failures, 2)

@@ -52,7 +52,7 @@ def plan_of(cycle: Cycle, robots: Sequence[tuple[int, Sequence[int]]]) -> Plan:
 def assert_agrees(plan: Plan, failures: dict[int, int], delay: int = 0) -> OracleRun:
     """The oracle and simulate_failures give the same walks, takeovers and coverage times."""
     mine = run_plan(plan, failures, delay)
-    theirs = simulate_failures(plan, failures, detection_delay=delay)
+    theirs = simulate_failures(plan, failures, detection_delay=delay, recovery="takeover")
     legs = [(rp.start_index, rp.legs) for rp in plan.robots]
     context = f"failures {failures}, delay {delay}, plan {legs}"
     got = walks_as_subcells(plan, mine)

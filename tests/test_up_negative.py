@@ -125,7 +125,9 @@ def test_the_readme_headline_command_kills_robot_2(free_port: int, tmp_path: Pat
         # The agent never finished: its log has no completion of its own.
         log = RunDir(run).log_path("agent-2").read_text()
         assert "mission complete" not in log
-        assert summary(run)["takeovers"] >= 1
+        # the default recovery: the survivors re-plan together, nobody takes over
+        assert "re-planned: dead [2]" in out, out
+        assert summary(run)["takeovers"] == 0
     finally:
         if proc.poll() is None:
             proc.kill()

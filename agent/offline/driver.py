@@ -25,6 +25,7 @@ from agent.core.errors import AgentError, DigestMismatchError, MissionFailedErro
 from agent.core.gather import BodyAgent
 from agent.core.hw_link import HwLink
 from agent.core.lifecycle import run_agent
+from agent.offline.bodies import Bodies
 from agent.offline.hardware import Hardware
 from agent.offline.options import OfflineOptions
 from agent.offline.peers import PeerTable
@@ -69,6 +70,7 @@ class OfflineAgent(BodyAgent):
         self.plan: Plan | None = None
         self.runner: OfflineRunner | None = None
         self.board: ReplanBoard | None = None
+        self.bodies: Bodies | None = None
 
     # --- plumbing -------------------------------------------------------------------------
 
@@ -103,6 +105,9 @@ class OfflineAgent(BodyAgent):
     def _on_progress(self, key: str, msg: Progress) -> None:
         if msg.robot != self.robot:
             self.peers.on_progress(key, msg)
+            if self.bodies is not None and self.bodies.on_progress(
+                    msg.robot, msg.seq, self.bodies.cycle.position((msg.cell[0], msg.cell[1]))):
+                self.peers.changed.set()  # a body moved: a robot waiting on it decides again
 
     def _on_death(self, notice: DeathNotice) -> None:
         # Deaths are durable facts: re-announce them so a restarted router loses none.
@@ -224,17 +229,21 @@ class OfflineAgent(BodyAgent):
         self.peers.attach(machine)
         if rebalancing:
             self.board = ReplanBoard(self.plan, self.config.k, self.bus.drops)
+            self.bodies = Bodies.of_plan(self.plan, self.robot)
         self.runner = OfflineRunner(self.bus, self.hardware, self.peers, machine,
                                     self.incarnation, refresh=self.refresh,
                                     refresh_period=self.config.announce_period,
-                                    board=self.board, announce=self.announcer.set)
+                                    board=self.board, announce=self.announcer.set,
+                                    bodies=self.bodies)
         self.phase = "driving"
         self._status("covering")
         self._say("driving")
         await self.runner.run()
         self.phase = "done"
         self._status("done")
-        self._event("completed", detail=f"{self.runner.moves} moves")
+        traffic = self.runner.traffic_detail()
+        self._event("completed", detail=f"{self.runner.moves} moves"
+                                        + (f", {traffic}" if traffic else ""))
         self._mission_status("complete", f"robot {self.robot} knows every sub-cell covered",
                              robot=self.robot, moves=self.runner.moves)
         self._say(f"completed after {self.runner.moves} moves")

@@ -2,8 +2,10 @@
 
 Each command is a query on ``hw/<r>/cmd`` answered when the motion has finished in sim time.
 Stepping to a neighbouring sub-cell turns the body the short way round and drives one
-sub-cell forward. A bump is retried for a while (a dead body may not have vanished yet)
-before it counts as a hardware failure. A command refused because this robot's incarnation
+sub-cell forward. ``step_to`` retries a bump for a while (a dead body may not have vanished
+yet) before it counts as a hardware failure: the takeover's walks. ``try_step_to`` tries
+once: the deconflicted walks of ``--recovery rebalance`` decide again after a bump
+(agent.offline.runner). A command refused because this robot's incarnation
 is stale means the robot was declared dead: FencedError.
 
 Replies can be lost (a router restart drops queries in flight): the retry policy, shared
@@ -76,7 +78,31 @@ class Hardware:
                                 f"{reply.message}")
 
     async def step_to(self, target: SubCell) -> None:
-        """Turn towards the 4-adjacent sub-cell ``target`` and drive into it."""
+        """Turn towards the 4-adjacent sub-cell ``target`` and drive into it, retrying a
+        bump for a while (the takeover's walks: nothing else moves the body in the way)."""
+        await self._turn_to(target)
+        await self._forward(target)
+
+    async def try_step_to(self, target: SubCell) -> bool:
+        """Turn towards the 4-adjacent sub-cell ``target`` and drive into it once: False
+        when a body (or anything) was in the way (the deconflicted walks decide again)."""
+        await self._turn_to(target)
+        reply = await self.link.motion("forward", standing_on(target))
+        if reply.status == "bumped":
+            self.state.bumps += 1
+            return False
+        self._arrived(reply, target)
+        return True
+
+    def _arrived(self, reply: HwReply, target: SubCell) -> None:
+        if reply.status != "ok":
+            raise HardwareError(f"robot {self.robot}: forward into {target} answered "
+                                f"{reply.status}: {reply.message}")
+        if (reply.pose[0], reply.pose[1]) != tuple(target):
+            raise HardwareError(f"robot {self.robot}: drove to {reply.pose[:2]}, "
+                                f"expected {target}")
+
+    async def _turn_to(self, target: SubCell) -> None:
         pose = self.state.pose
         if pose is None:
             raise HardwareError(f"robot {self.robot}: pose unknown; read it first")
@@ -88,7 +114,6 @@ class Hardware:
         for action in turns(pose[2], heading):
             want = (self._heading() + (1 if action == "turn_right" else -1)) % 4
             self._check(await self.link.motion(action, facing(want)), action)
-        await self._forward(target)
 
     def _heading(self) -> int:
         assert self.state.pose is not None

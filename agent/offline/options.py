@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from agent.core.errors import ConfigError
 from bus.argtypes import positive_int
 from planner.algorithms import Family, names
-from planner.offline.rebalance import RECOVERIES, Recovery
+from planner.offline.rebalance import DEFAULT_RECOVERY, RECOVERIES, Recovery
 from planner.trees import ALL_TREE_KINDS
 
 DEFAULT_TREE = "dfs"
@@ -22,7 +22,7 @@ class OfflineOptions:
     world: str
     cell_size: int | None = None
     tree: str = DEFAULT_TREE
-    recovery: Recovery = "takeover"
+    recovery: Recovery = DEFAULT_RECOVERY
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,11 +33,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             "algorithms (required for them)")
     group.add_argument("--cell-size", type=positive_int, default=None, metavar="PX",
                        help="map pixels per sub-cell side (default 1)")
-    group.add_argument("--recovery", choices=RECOVERIES, default="takeover",
-                       help="after a death: the papers' takeover (the robot behind walks the "
-                            "dead one's rest after its own) or rebalance (the survivors stop, "
-                            "exchange where they are and re-split the remaining work) "
-                            "(default takeover)")
+    group.add_argument("--recovery", choices=RECOVERIES, default=DEFAULT_RECOVERY,
+                       help="after a death: rebalance (the survivors stop, exchange where "
+                            "they are and re-split the remaining work; walks that cross wait "
+                            "or step aside) or the papers' takeover (the robot behind walks "
+                            "the dead one's rest after its own) "
+                            f"(default {DEFAULT_RECOVERY})")
 
 
 def from_args(args: argparse.Namespace) -> OfflineOptions:

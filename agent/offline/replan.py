@@ -63,6 +63,11 @@ class ReplanBoard:
         return [r for r in range(self.k) if r not in dead
                 and (r not in self.reports or self.reports[r].dead != dead)]
 
+    def positions(self, dead: tuple[int, ...]) -> dict[int, int]:
+        """Where each robot of epoch ``dead`` reported to stand."""
+        return {r: report.position for r, report in self.reports.items()
+                if r not in dead and report.dead == dead}
+
     def replan(self, dead: tuple[int, ...]) -> tuple[Replan, BoolArray, str]:
         """The re-plan of epoch ``dead`` (every report present), the coverage it knew, and
         the digest of the reports it was made from."""

@@ -5,6 +5,11 @@ The machine (planner.offline) decides; this module only carries its decisions ou
 becomes turns and a forward step of the body, then a Progress message; a takeover decision
 becomes RobotEvents; WaitFor waits for news (a death, coverage) and meanwhile pulls the
 others' re-learnable state, so coverage missed during a router outage is learned again.
+
+With ``--recovery rebalance`` every step also goes through planner.offline.traffic (the
+lockstep's deconfliction, fed with agent.offline.bodies' knowledge of the other bodies): a
+MoveTo may wait for a body in the way or step aside first, a robot with nothing to walk
+steps aside for one whose next sub-cell it stands on, and a bump makes it decide again.
 """
 
 from __future__ import annotations
@@ -15,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from agent.core.errors import HardwareError
+from agent.offline.bodies import Bodies
 from agent.offline.hardware import Hardware
 from agent.offline.peers import PeerTable
 from agent.offline.replan import ReplanBoard
@@ -22,6 +29,12 @@ from bus import keys
 from bus.bridge import Bus
 from bus.messages import EventKind, Progress, ReplanReport, RobotEvent, pack_covered
 from planner.offline.machine import Finished, MoveTo, PlanRobot, WaitFor
+from planner.offline.traffic import Go, Traffic
+
+# How long bumps into the same sub-cell, one after the other, may go on before the body
+# counts as failed (a body simhw holds that nobody knows of: a robot outside the plan).
+BUMP_PATIENCE_S = 30.0
+BUMP_RETRY_S = 0.05
 
 
 class OfflineRunner:
@@ -30,7 +43,8 @@ class OfflineRunner:
     def __init__(self, bus: Bus, hardware: Hardware, peers: PeerTable, machine: PlanRobot,
                  incarnation: int, *, refresh: Callable[[], Awaitable[None]],
                  refresh_period: float, board: ReplanBoard | None = None,
-                 announce: Callable[[str, Any], None] | None = None) -> None:
+                 announce: Callable[[str, Any], None] | None = None,
+                 bodies: Bodies | None = None) -> None:
         self.bus = bus
         self.hardware = hardware
         self.peers = peers
@@ -50,6 +64,11 @@ class OfflineRunner:
         self.board = board
         self._announce = announce
         self._epoch: tuple[int, ...] = ()
+        # --recovery rebalance: the other bodies as known, and this body's deconfliction
+        self.bodies = bodies
+        self.lane = None if bodies is None else Traffic(self.robot, machine.cycle,
+                                                        machine.position)
+        self._bumping: tuple[int, float] | None = None  # (place, since) of repeated bumps
 
     def event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
         self.bus.publish(keys.events(self.bus.mission, self.robot),
@@ -70,18 +89,61 @@ class OfflineRunner:
             action = self.machine.next_action()
             self._announce_decisions()
             self._announce_section()
-            if isinstance(action, Finished):
+            if isinstance(action, Finished) or (self.lane is not None
+                                                and self.machine.all_covered):
                 self.phase = "done"
                 return
             if isinstance(action, WaitFor):
                 self.phase = f"watching {action.watching}"
+                if self.lane is not None and await self._drive(None):
+                    continue
                 if time.monotonic() - self._refreshed >= self._refresh_period:
                     self._refreshed = time.monotonic()
                     await self._refresh()
                 await self.peers.wait_news(self._refresh_period)
                 continue
             self.phase = "covering" if not self.machine.section_done else "taking over"
-            await self._move(action)
+            if self.lane is None:
+                await self._move(action)
+            elif not await self._drive(action):
+                await self.peers.wait_news(self._refresh_period)
+
+    def traffic_detail(self) -> str:
+        """The deconfliction's counts, for the "completed" event (empty without it)."""
+        if self.lane is None:
+            return ""
+        return self.lane.counts.describe()
+
+    async def _drive(self, action: MoveTo | None) -> bool:
+        """One deconflicted step towards ``action`` (None: only make way); True if the body
+        moved (or walked a plan step in place)."""
+        assert self.lane is not None and self.bodies is not None
+        plan_next = None if action is None else action.index
+        step = self.lane.decide(plan_next, self.bodies.peers(self.machine.dead))
+        if not isinstance(step, Go):
+            return False
+        if step.target == self.lane.at:
+            self.machine.on_moved()
+            return True
+        if not await self.hardware.try_step_to(self.machine.cycle.at(step.target)):
+            self.lane.bumped()
+            now = time.monotonic()
+            if self._bumping is None or self._bumping[0] != step.target:
+                self._bumping = (step.target, now)
+            elif now - self._bumping[1] > BUMP_PATIENCE_S:
+                raise HardwareError(f"robot {self.robot}: bumped into "
+                                    f"{self.machine.cycle.at(step.target)} for "
+                                    f"{now - self._bumping[1]:.0f} s")
+            await self.peers.wait_news(BUMP_RETRY_S)
+            return False
+        self._bumping = None
+        if step.on_plan:
+            self.machine.on_moved()
+        else:
+            self.machine.on_covered(step.target)
+        self.lane.moved(step)
+        self._moved(self.machine.cycle.at(step.target))
+        return True
 
     def _dead(self) -> tuple[int, ...]:
         return tuple(sorted(self.machine.dead))
@@ -93,7 +155,10 @@ class OfflineRunner:
         dead = self._dead()
         self.phase = "re-planning"
         m = self.machine
-        mine = ReplanReport(self.robot, self.incarnation, dead, m.position, m.pending_route,
+        at, route = m.position, m.pending_route
+        if self.lane is not None:
+            at, route = self.lane.at, self.lane.walk(route)
+        mine = ReplanReport(self.robot, self.incarnation, dead, at, route,
                             pack_covered(m.covered))
         self.board.on_report(keys.replan(self.bus.mission, self.robot), mine)
         self._announce(keys.replan(self.bus.mission, self.robot), mine)
@@ -104,6 +169,9 @@ class OfflineRunner:
                     m.on_covered(int(index))
                 route = replan.routes[self.robot]
                 m.on_replan(route)
+                if self.lane is not None and self.bodies is not None:
+                    self.lane.rejoin()
+                    self.bodies.on_replan(replan.routes, self.board.positions(dead))
                 self._epoch = dead
                 self.event("replanned", None, f"dead {list(dead)}, digest {digest[:16]}, "
                                               f"{len(route)} moves to walk")
@@ -116,13 +184,16 @@ class OfflineRunner:
     async def _move(self, action: MoveTo) -> None:
         await self.hardware.step_to(action.sub)
         index = self.machine.on_moved()
-        self.moves += 1
-        self.bus.publish(keys.progress(self.bus.mission, self.robot),
-                         Progress(self.robot, self.incarnation, self.moves, action.sub,
-                                  self.hardware.state.sim_time))
+        self._moved(action.sub)
         dead = self._targets.pop(index, None)
         if dead is not None:
             self.event("takeover_finished", dead, f"reached cycle index {index}")
+
+    def _moved(self, sub: tuple[int, int]) -> None:
+        self.moves += 1
+        self.bus.publish(keys.progress(self.bus.mission, self.robot),
+                         Progress(self.robot, self.incarnation, self.moves, sub,
+                                  self.hardware.state.sim_time))
 
     def _announce_decisions(self) -> None:
         for decision in self.machine.pop_decisions():

@@ -45,6 +45,7 @@ from deploy.monitor.types import (
     TokenChange,
 )
 from deploy.monitor.world import WorldPicture
+from planner.offline.traffic import TrafficCounts
 from planner.types import BoolArray, SubCell
 
 
@@ -183,6 +184,7 @@ class FleetModel:
         elif ev.kind == "completed":
             view.done = True
             view.state = "done"
+            view.traffic = TrafficCounts.parse(ev.detail) or view.traffic
             self._emit(record.t, "completed", r, f"robot {r} completed{detail}")
         elif ev.kind == "completion_withdrawn":
             view.done = False

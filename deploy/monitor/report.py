@@ -20,6 +20,7 @@ from deploy.monitor.redundancy import EntryAccount, account_entries
 from deploy.monitor.types import Gap, Record, Recording
 from deploy.monitor.walkouts import walk_out_redundancy
 from planner.algorithms import ALGORITHMS, Family, Revisits
+from planner.offline.traffic import TrafficCounts
 
 SHOWN_REVISITS = 10  # revisited sub-cells listed by the text report (--json lists all)
 
@@ -42,6 +43,8 @@ class RobotFigures:
     messages_per_move: float | None
     dead: bool
     took_over: tuple[int, ...]
+    # deconflicted walks (--recovery rebalance), as the robot's completion stated them
+    traffic: TrafficCounts | None = None
 
 
 @dataclass(frozen=True)
@@ -122,7 +125,9 @@ class MissionReport:
                         "moves_at_coverage": f.moves_at_coverage, "revisits": f.revisits,
                         "look_steps": f.look_steps,
                         "messages": f.messages, "messages_per_move": f.messages_per_move,
-                        "dead": f.dead, "took_over": list(f.took_over)} for f in self.robots],
+                        "dead": f.dead, "took_over": list(f.took_over),
+                        "traffic": None if f.traffic is None else f.traffic.as_dict()}
+                       for f in self.robots],
             "deaths": [{"robot": d.robot, "incarnation": d.incarnation, "reason": d.reason,
                         "detected_by": list(d.detected_by), "t": d.t,
                         "since_last_heartbeat": d.since_last_heartbeat,
@@ -160,7 +165,7 @@ def build_report(recording: Recording) -> MissionReport:
                      revisits=v.revisits, look_steps=v.look_steps,
                      messages=sent.get(r, 0),
                      messages_per_move=round(sent.get(r, 0) / v.moves, 3) if v.moves else None,
-                     dead=v.dead, took_over=tuple(v.took_over))
+                     dead=v.dead, took_over=tuple(v.took_over), traffic=v.traffic)
         for r, v in sorted(model.robots.items()))
     account = _account(model)
     complete = model.cover.complete_at
@@ -369,8 +374,9 @@ def format_report(report: MissionReport) -> str:
         extra = (" DEAD" if f.dead else "") + \
             (f" took over {list(f.took_over)}" if f.took_over else "")
         looks = f", {f.look_steps} look steps" if f.look_steps else ""
-        lines.append(f"  robot {f.robot}: {f.moves} moves, {f.revisits} revisits{looks}, "
-                     f"{f.messages} messages ({per}/move){extra}")
+        traffic = "" if f.traffic is None else f", {f.traffic.describe()}"
+        lines.append(f"  robot {f.robot}: {f.moves} moves, {f.revisits} revisits{looks}"
+                     f"{traffic}, {f.messages} messages ({per}/move){extra}")
     for c, who in report.revisited_cells[:SHOWN_REVISITS]:
         lines.append(f"  revisited {c} by robots {list(who)}")
     if len(report.revisited_cells) > SHOWN_REVISITS:

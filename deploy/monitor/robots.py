@@ -11,6 +11,7 @@ from typing import Any
 from bus import keys
 from bus.messages import DeathNotice
 from deploy.monitor.types import Record
+from planner.offline.traffic import TrafficCounts
 from planner.types import SubCell
 
 Pose = tuple[int, int, int]
@@ -41,6 +42,8 @@ class RobotView:
     left: bool = False
     ended: str = ""  # "stopped" or "fenced": this life ended on an error
     took_over: list[int] = field(default_factory=list)
+    # deconflicted walks (--recovery rebalance): waits, detours, bumps from its completion
+    traffic: TrafficCounts | None = None
     messages: int = 0
     tree_kind: str = ""  # offline plans: the tree kind and seed from the agent's state
     seed: int = 0

@@ -15,13 +15,13 @@ import numpy as np
 
 from planner.balanced.machine import BalancedRobot, validate_replay
 from planner.offline.lockstep import TakeoverResult, replanner, replay
-from planner.offline.rebalance import Recovery
+from planner.offline.rebalance import DEFAULT_RECOVERY, Recovery
 from planner.types import IntArray, Plan
 
 
 def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
                       detection_delay: int = 0,
-                      recovery: Recovery = "takeover") -> TakeoverResult:
+                      recovery: Recovery = DEFAULT_RECOVERY) -> TakeoverResult:
     """Replay ``plan`` when robot ``r`` fails at time ``failures[r]`` (after that many moves);
     ``recovery`` as in planner.offline.lockstep.simulate_failures.
 
@@ -34,7 +34,8 @@ def simulate_failures(plan: Plan, failures: Mapping[int, int], *,
     on = cycle.index >= 0
     machines = [BalancedRobot(plan, robot, takeover=recovery == "takeover") for robot in ids]
     replayed = replay(machines, ids, [cycle.position(rp.path[0]) for rp in plan.robots],
-                      failures, detection_delay, cycle.n, cycle.at, replanner(plan, recovery))
+                      failures, detection_delay, cycle.n, cycle.at, replanner(plan, recovery),
+                      bodies=cycle if recovery == "rebalance" else None)
 
     def spread(values: IntArray, fill: int) -> IntArray:
         out = np.full(cycle.index.shape, fill, dtype=np.int64)

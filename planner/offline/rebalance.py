@@ -32,6 +32,9 @@ from planner.types import BoolArray, Cycle, IntArray, Plan
 
 Recovery = Literal["takeover", "rebalance"]
 RECOVERIES: tuple[Recovery, ...] = ("takeover", "rebalance")
+# The default of simulate_failures, mstc up and mstc agent: walks are deconflicted
+# (planner.offline.traffic), so the re-plan's walks across other regions are safe.
+DEFAULT_RECOVERY: Recovery = "rebalance"
 # Survivors considered for a piece, nearest (finish time plus travel) first: beyond a dozen,
 # a far survivor never shortens the makespan and the assignment grows cubically.
 MAX_TAKERS = 12

@@ -1,0 +1,90 @@
+"""Where the other robots' bodies stand and where they go next, as one offline agent knows
+it: the knowledge planner.offline.traffic decides from (``--recovery rebalance``).
+
+Nothing here is an oracle: a robot's place is the sub-cell of its latest Progress message
+(its start before any), its route is its walk of the agreed plan, replaced by its route of
+each re-plan (every survivor computes everyone's), and how far along that route it is is
+found by matching its Progress sub-cells against the route. A robot whose last sub-cell is
+off its route stepped aside: it is taken to be on its way back to where it left the route.
+Robots known dead are left out (simhw's body vanishes on the death notice).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass, field
+
+from planner.offline.traffic import LOOK, Peer, neighbours
+from planner.types import Cycle, Plan
+
+
+@dataclass
+class _Walk:
+    position: int
+    base: int  # where the route starts (the route's first place is next to it)
+    route: tuple[int, ...]
+    done: int = 0  # places of the route walked
+    seq: int = -1  # the latest Progress seq applied
+
+
+@dataclass
+class Bodies:
+    """The other robots of ``plan`` as robot ``robot`` knows them."""
+
+    cycle: Cycle
+    robot: int
+    walks: dict[int, _Walk] = field(default_factory=dict)
+
+    @classmethod
+    def of_plan(cls, plan: Plan, robot: int) -> Bodies:
+        cycle = plan.cycle
+        out = cls(cycle, robot)
+        for rp in plan.robots:
+            if rp.robot != robot:
+                start = cycle.position(rp.path[0])
+                out.walks[rp.robot] = _Walk(start, start, tuple(cycle.position(s)
+                                                                for s in rp.path[1:]))
+        return out
+
+    def on_progress(self, robot: int, seq: int, index: int) -> bool:
+        """Robot ``robot`` reported its ``seq``-th move, into cycle index ``index``; True
+        when that is news."""
+        walk = self.walks.get(robot)
+        if walk is None or seq <= walk.seq or index < 0:
+            return False
+        walk.seq = seq
+        walk.position = index
+        window = walk.route[walk.done:walk.done + 2 * LOOK]
+        if index in window:
+            walk.done += window.index(index) + 1
+        return True
+
+    def on_replan(self, routes: Mapping[int, Sequence[int]],
+                  positions: Mapping[int, int]) -> None:
+        """A re-plan: each survivor walks ``routes[r]`` from ``positions[r]`` (its report);
+        a survivor already seen further on is placed along its new route."""
+        for robot, route in routes.items():
+            walk = self.walks.get(robot)
+            if walk is None:
+                continue
+            base = positions.get(robot, walk.position)
+            walk.base, walk.route, walk.done = base, tuple(route), 0
+            if walk.position != base and walk.position in walk.route[:2 * LOOK]:
+                walk.done = walk.route.index(walk.position) + 1
+
+    def peers(self, dead: Collection[int]) -> list[Peer]:
+        """Every body not known dead, with its next places as far as known."""
+        out = []
+        for robot, walk in sorted(self.walks.items()):
+            if robot in dead:
+                continue
+            ahead = walk.route[walk.done:walk.done + LOOK]
+            left_at = walk.route[walk.done - 1] if walk.done else walk.base
+            if not ahead or walk.position == left_at \
+                    or ahead[0] in neighbours(self.cycle, walk.position):
+                out.append(Peer(robot, walk.position, ahead))
+            elif left_at in neighbours(self.cycle, walk.position):
+                out.append(Peer(robot, walk.position, (left_at, *ahead)[:LOOK], True))
+            else:
+                out.append(Peer(robot, walk.position))  # somewhere aside: next unknown
+        return out

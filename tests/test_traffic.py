@@ -1,0 +1,162 @@
+"""Deconfliction of crossing walks (planner.offline.traffic) in the lockstep model: robots
+meeting head-on in a corridor swap, a robot parked on another's route makes way, and on
+generated instances with deaths under ``recovery="rebalance"`` no two bodies ever share a
+sub-cell (nor does one enter a sub-cell another is leaving) and every run completes."""
+
+from __future__ import annotations
+
+import random
+from collections import deque
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from test_rebalance import ALGOS, generated, make, random_deaths
+
+from agent.offline.bodies import Bodies
+from planner.algorithms import algorithm
+from planner.cycle import stc_cycle
+from planner.offline.lockstep import TakeoverResult, replay
+from planner.offline.machine import Finished, MoveTo, RobotAction, TakeoverDecision
+from planner.offline.traffic import Go, Hold, Peer, Traffic
+from planner.trees import build_tree
+from planner.types import Cycle, IntArray, SubCell
+
+
+def corridor(cells: int) -> Cycle:
+    """A corridor two sub-cells wide and ``2 * cells`` long (one row of coarse cells)."""
+    return stc_cycle(build_tree(np.ones((1, cells), dtype=bool), "dfs", seed=None))
+
+
+class Scripted:
+    """A machine that walks a fixed list of sub-cells and then is done (parked)."""
+
+    def __init__(self, cycle: Cycle, start: SubCell, walk: list[SubCell]) -> None:
+        self.cycle = cycle
+        self.position = cycle.position(start)
+        self._pending = deque(cycle.position(s) for s in walk)
+
+    def on_covered(self, key: int) -> None:
+        pass
+
+    def on_dead(self, robot: int) -> None:
+        pass
+
+    def on_moved(self) -> int:
+        self.position = self._pending.popleft()
+        return self.position
+
+    def next_action(self) -> RobotAction:
+        if self._pending:
+            return MoveTo(self._pending[0], self.cycle.at(self._pending[0]))
+        return Finished()
+
+    def pop_decisions(self) -> list[TakeoverDecision]:
+        return []
+
+    @property
+    def pending_route(self) -> tuple[int, ...]:
+        return tuple(self._pending)
+
+    def on_replan(self, route: tuple[int, ...]) -> None:
+        self._pending = deque(route)
+
+
+def check_bodies(timeline: IntArray) -> None:
+    """Never two bodies on one sub-cell, never a body into one another held a step before."""
+    for t in range(timeline.shape[0]):
+        row = timeline[t][timeline[t] >= 0].tolist()
+        assert len(set(row)) == len(row), (t, timeline[t])
+        if t == 0:
+            continue
+        for i, place in enumerate(timeline[t].tolist()):
+            if place >= 0 and place != timeline[t - 1][i]:
+                before = {int(timeline[t - 1][j]) for j in range(timeline.shape[1])
+                          if j != i and timeline[t][j] >= 0}
+                assert place not in before, (t, i, place)
+
+
+def run(cycle: Cycle, scripts: list[tuple[SubCell, list[SubCell]]]) -> TakeoverResult:
+    machines = [Scripted(cycle, start, walk) for start, walk in scripts]
+    ids = list(range(len(scripts)))
+    replayed = replay(machines, ids, [m.position for m in machines], {}, 0, cycle.n, cycle.at,
+                      bodies=cycle)
+    return replayed.result(lambda values, fill: values)
+
+
+def row(r: int, cols: range) -> list[SubCell]:
+    return [(r, c) for c in cols]
+
+
+def test_two_robots_meeting_head_on_in_a_corridor_swap() -> None:
+    cycle = corridor(4)  # sub-cells (0..1, 0..7)
+    # robot 0 walks the top row left to right, robot 1 the same row right to left
+    result = run(cycle, [((0, 0), row(0, range(1, 8))), ((0, 7), row(0, range(6, -1, -1)))])
+    check_bodies(result.timeline)
+    assert result.walks[0][-1] == (0, 7) and result.walks[1][-1] == (0, 0)
+    # robot 1 (the higher id) stepped aside into the bottom row and back: two detours
+    assert [c.detours for c in result.traffic] == [0, 2]
+    assert result.traffic[0].waits == 1
+    assert any(r == 1 for r, _ in result.walks[1])
+
+
+def test_a_parked_robot_on_the_route_makes_way() -> None:
+    cycle = corridor(4)
+    # robot 0 walks the top row; robot 1 has nothing to walk and stands in the middle of it
+    result = run(cycle, [((0, 0), row(0, range(1, 8))), ((0, 4), [])])
+    check_bodies(result.timeline)
+    assert result.walks[0][-1] == (0, 7)
+    assert result.walks[1] == ((0, 4), (1, 4))  # one step aside, it stays there
+    assert result.traffic[1].detours == 1
+
+
+def test_three_robots_in_one_corridor_all_arrive() -> None:
+    cycle = corridor(5)  # (0..1, 0..9)
+    result = run(cycle, [((0, 0), row(0, range(1, 10))), ((0, 9), row(0, range(8, -1, -1))),
+                         ((1, 5), [(1, c) for c in range(4, -1, -1)])])
+    check_bodies(result.timeline)
+    assert [w[-1] for w in result.walks] == [(0, 9), (0, 0), (1, 0)]
+
+
+def test_the_yielder_is_the_one_every_robot_of_the_ring_names() -> None:
+    cycle = corridor(2)
+    a, b = cycle.position((0, 1)), cycle.position((0, 2))
+    low, high = Traffic(0, cycle, a), Traffic(1, cycle, b)
+    # head-on: each one's next place is where the other stands
+    assert isinstance(low.decide(b, [Peer(1, b, (a,))]), Hold)
+    step = high.decide(a, [Peer(0, a, (b,))])
+    assert isinstance(step, Go) and not step.on_plan
+    assert cycle.at(step.target) in {(1, 2), (0, 3)}  # beside it, off the other's way
+
+
+@settings(deadline=None, max_examples=25)
+@given(seed=st.integers(0, 10_000), algo=st.sampled_from(ALGOS), crowd=st.booleans())
+def test_seeded_instances_with_deaths_never_share_a_sub_cell_and_complete(
+        seed: int, algo: str, crowd: bool) -> None:
+    rng = random.Random(seed)
+    k = rng.randrange(2, 14 if crowd else 8)
+    area = generated(seed, k)
+    plan = make(algo, area, seed)
+    deaths = random_deaths(plan, rng, rng.randrange(0, k))
+    delay = rng.randrange(0, 4)
+    result = algorithm(algo).load_lockstep()(plan, deaths, detection_delay=delay)
+    assert result.complete and int(result.covered.sum()) == area.n
+    check_bodies(result.timeline)
+    assert len(result.traffic) == plan.k
+
+
+def test_bodies_follow_progress_along_the_route_and_aside() -> None:
+    cycle = corridor(4)
+    plan_walk = [cycle.position(s) for s in row(0, range(0, 8))]
+    bodies = Bodies(cycle, robot=9)
+    bodies.on_replan({0: tuple(plan_walk[1:])}, {0: plan_walk[0]})
+    assert bodies.walks == {}  # a robot it never heard of is not invented
+    bodies = Bodies.of_plan(make("opt", generated(1, 3), 1), robot=0)
+    other = next(iter(bodies.walks))
+    walk = bodies.walks[other]
+    first = walk.route[0]
+    assert bodies.on_progress(other, 1, first)
+    assert not bodies.on_progress(other, 1, first)  # the same report again is no news
+    peer = next(p for p in bodies.peers(()) if p.robot == other)
+    assert peer.position == first and peer.ahead[:1] == walk.route[1:2]
+    assert bodies.peers({other}) == [p for p in bodies.peers(()) if p.robot != other]
