@@ -41,6 +41,7 @@ from planner.ormstc.types import (
     Move,
     MoveResult,
     PeerDied,
+    PeerHorizon,
     PeerMessage,
     Request,
     Sense,
@@ -67,7 +68,7 @@ class OrmstcMachine:
         # a claim heard at t is decided by t + wait and its edge heard by t + wait + D, with
         # D <= (wait + 1) / 2; 2 wait + 1 is past both
         self.know = Knowledge(config.robot, config.team, config.priority,
-                              claim_ttl=2 * config.claim_wait + 1)
+                              claim_ttl=2 * config.claim_wait + 1, fifo=config.await_horizon)
         self.now = 0.0
         start = config.start
         self.home: SubCell = (round(start[0]), round(start[1]))
@@ -86,6 +87,7 @@ class OrmstcMachine:
         self.moves = 0
         self.bumps = 0
         self.sense_turns = 0
+        self.horizon_waits = 0  # claims decided after waiting for peers' horizons
         self.takeovers = 0
         self.finished = False  # announced completion and not withdrawn
         self.idle = False  # finished with nothing to take over; waiting for peers
@@ -118,6 +120,8 @@ class OrmstcMachine:
                     self.now = know.now = event.now  # type: ignore[union-attr]
             elif kind is PeerDied:
                 know.mark_dead(event.robot)  # type: ignore[union-attr]
+            elif kind is PeerHorizon:
+                know.heard_until(event.robot, event.at)  # type: ignore[union-attr]
             else:
                 self._answer = event
         if know.conflicts or self.ceded:
@@ -286,6 +290,8 @@ class OrmstcMachine:
         know.claims.hear(target, self.me, covered, self.now)
         self.outbox.append(Broadcast(ClaimMsg(self.me, target, covered)))
         yield (_UNTIL, self.now + self.config.claim_wait)
+        if self.config.await_horizon:
+            yield from self._await_horizon(self.now)
         outcome = know.claims.decide(target, self.me, know.live_owner(target), know.dead,
                                      self.now)
         if cell in self.ceded:
@@ -293,6 +299,20 @@ class OrmstcMachine:
         if not outcome.won and outcome.winner is not None:
             self._connect(outcome.winner, cell, target, unsure=know.live_owner(target) is None)
         return outcome.won
+
+    def _await_horizon(self, when: float) -> Flow:
+        """Wait until what every live peer said before ``when`` (less one delay) is known:
+        a claim or tree edge lost on the way is then repaired, not missed (docs/ormstc.md,
+        "Claims under message loss")."""
+        know = self.know
+        if know.heard_through(when):
+            return None
+        while not know.heard_through(when):
+            know.awaiting, know.changed = True, False
+            yield (_WAKE, self.now + self.config.claim_wait)
+        know.awaiting = False
+        self.horizon_waits += 1
+        return None
 
     def _grow(self, cell: Cell, side: int) -> None:
         dr, dc = DELTA[side]

@@ -48,6 +48,10 @@ class MachineConfig:
     watch_interval: float = 10.0
     bump_backoff: float = 3.0
     announce_connections: bool = False  # broadcast ConnectionMsg (for monitors only)
+    # decide a claim only once every live peer's horizon (PeerHorizon) has passed the end of
+    # its window, and let a peer's later claim, edge or completion settle its earlier claims
+    # (needs in-order delivery per sender: agent/ormstc/wire.py over planner/ormstc/streams)
+    await_horizon: bool = False
     seed: int = 0
 
 
@@ -126,7 +130,16 @@ class PeerDied:
     robot: int
 
 
-Event = Tick | SenseResult | MoveResult | AliveResult | PeerMessage | PeerDied
+@dataclass(frozen=True, slots=True)
+class PeerHorizon:
+    """Every message ``robot`` sent before a digest of it received at ``at`` has been
+    delivered (``at`` = inf: it will send nothing more that matters, e.g. it left)."""
+
+    robot: int
+    at: float
+
+
+Event = Tick | SenseResult | MoveResult | AliveResult | PeerMessage | PeerDied | PeerHorizon
 
 
 # ---- messages (robot -> robots) ----
