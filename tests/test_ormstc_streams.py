@@ -195,7 +195,7 @@ def _play(times: tuple[int, int], delay: dict[tuple[str, int], int],
             if horizon:
                 end = times[i] + wait
 
-                def held(seq: int, j: int = j) -> bool:
+                def held(seq: int, j: int = j, t: int = t) -> bool:
                     kind = sent[j][seq - 1][0]
                     return arrivals[(kind, j)] <= t
 
