@@ -65,8 +65,8 @@ from planner.ormstc.types import (
     Message,
     Move,
     MoveResult,
+    PeerAck,
     PeerDied,
-    PeerHorizon,
     PeerMessage,
     Request,
     Sense,
@@ -102,7 +102,9 @@ class OrmstcAgent(BodyAgent):
         # (not merely in flight), and at most once per it
         self.resender = Resender(config.incarnation, grace=max(0.1, config.heartbeat_period))
         self.resent_bytes = 0
-        self._horizons: dict[int, float] = {}
+        self.broadcasts = 0  # the machine's Broadcasts published (its numbering of them)
+        self.index_of_seq: list[int] = []  # per published seq: broadcasts published by then
+        self._acks: dict[int, float] = {}
         # a peer silent this long was cut off: restate (docs/ormstc.md, "Router restarts")
         self.rejoin = Rejoin(silence=max(1.0, 5 * config.heartbeat_period))
 
@@ -135,14 +137,17 @@ class OrmstcAgent(BodyAgent):
         for item, msg in self.inbound.accept(key, wire, self.now()):
             self.book.heard(item)
             self._wake(PeerMessage(item.robot, msg))
-        self._horizon(wire.robot)
+        self._ack(wire.robot)
 
-    def _horizon(self, robot: int, at: float | None = None) -> None:
-        """Tell the machine when a peer's horizon advanced (planner.ormstc.streams)."""
-        at = self.inbound.streams.horizon(robot) if at is None else at
-        if at > self._horizons.get(robot, float("-inf")):
-            self._horizons[robot] = at
-            self._wake(PeerHorizon(robot, at))
+    def _ack(self, robot: int, upto: float | None = None) -> None:
+        """Tell the machine how many of its broadcasts a peer acknowledged, counting only
+        acknowledgements all of whose preceding messages are in (planner.ormstc.streams)."""
+        if upto is None:
+            taken = min(self.inbound.streams.acked(robot), len(self.index_of_seq))
+            upto = self.index_of_seq[taken - 1] if taken > 0 else 0
+        if upto > self._acks.get(robot, 0):
+            self._acks[robot] = upto
+            self._wake(PeerAck(robot, upto))
 
     def _on_status(self, key: str, status: RobotStatus) -> None:
         if 0 <= status.robot < self.config.k and status.robot != self.robot:
@@ -157,12 +162,13 @@ class OrmstcAgent(BodyAgent):
         now = self.now()
         if self.rejoin.heard(hb.robot, now):
             self._wake()
-        self.inbound.heartbeat(hb.robot, hb.incarnation, hb.said, now)
-        self._horizon(hb.robot)
-        for robot, life, taken in hb.heard:
-            if robot == self.robot:
-                for seq in self.resender.lacking(life, taken, now):
-                    self._resend(self.log[seq - 1])
+        mine = [(life, taken) for robot, life, taken in hb.heard if robot == self.robot]
+        acked = next((taken for life, taken in mine if life == self.config.incarnation), None)
+        self.inbound.heartbeat(hb.robot, hb.incarnation, hb.said, now, acked)
+        self._ack(hb.robot)
+        for life, taken in mine:
+            for seq in self.resender.lacking(life, taken, now):
+                self._resend(self.log[seq - 1])
 
     def _resend(self, wire: OrmstcWire) -> None:
         """Say a message again with its own number: a peer lacks it (lost on the way)."""
@@ -175,7 +181,7 @@ class OrmstcAgent(BodyAgent):
             return
         self.dead.add(robot)
         self.announcer.set(keys.death(self.bus.mission, robot), notice, publish=False)
-        self._horizon(robot, float("inf"))  # nothing more to wait for from it
+        self._ack(robot, float("inf"))  # nothing more to wait for from it
         status = self.statuses.get(robot)
         if status is not None and status.state == "done":
             return  # it left after the mission was over for it: nothing to take over
@@ -203,6 +209,7 @@ class OrmstcAgent(BodyAgent):
                 message, self._roster_wire(state)))
 
     def _broadcast(self, request: Broadcast) -> None:
+        self.broadcasts += 1
         self.book.sent(self._publish(request.message))
         if isinstance(request.message, DeadRobotMsg):  # for monitors and mstc up's summary
             self._event("takeover_started", request.message.dead, "its cells are free again")
@@ -211,6 +218,7 @@ class OrmstcAgent(BodyAgent):
         self.sent += 1
         wire = to_wire(message, self.config.incarnation, self.sent)
         self.log.append(wire)
+        self.index_of_seq.append(self.broadcasts)
         self.resender.said(self.sent, self.now())
         self.sent_bytes += len(encode(wire))
         self.bus.publish(key_for(self.bus.mission, wire), wire)
@@ -337,8 +345,8 @@ class OrmstcAgent(BodyAgent):
     def _finished(self, done: bool, machine: OrmstcMachine) -> None:
         detail = (f"{machine.moves} moves, {len(machine.mine)} cells, {self.sent} messages, "
                   f"{self.sent_bytes} bytes, {self.resender.resent} resent "
-                  f"({self.resent_bytes} bytes), {machine.horizon_waits} claims waited for "
-                  f"peers' messages, {self.sonar.steps} steps to look, "
+                  f"({self.resent_bytes} bytes), {machine.ack_waits} claims waited for "
+                  f"acknowledgements, {self.sonar.steps} steps to look, "
                   f"{self.sonar.glance_readings} readings after moves")
         if done:
             self._status("done")
@@ -360,7 +368,7 @@ class OrmstcAgent(BodyAgent):
                 self.pending.append(PeerMessage(robot, StartMsg(robot, sub)))
         for robot in range(self.config.k):  # non-participants say nothing to wait for
             if robot not in self.roster or robot in self.dead:
-                self._horizon(robot, float("inf"))
+                self._ack(robot, float("inf"))
         self._status("covering")
         self._event("started")
         self._say("driving")
@@ -370,8 +378,8 @@ class OrmstcAgent(BodyAgent):
                   f"({m.cut} cells handed over), {self.rejoin.count} restatements, "
                   f"{self.inbound.repeats} repeats heard, {self.inbound.gaps} missing "
                   f"messages of peers seen, {self.inbound.streams.duplicates} duplicates, "
-                  f"{self.resender.resent} resent, {m.horizon_waits} claims waited for "
-                  "peers' horizons")
+                  f"{self.resender.resent} resent, {m.ack_waits} claims waited for "
+                  "acknowledgements")
 
 
 def drive(config: AgentConfig, options: OrmstcOptions, settings: ConnectionSettings) -> int:

@@ -42,7 +42,7 @@ class OrmstcOptions:
             claim_wait=self.claim_wait, sense_mode=self.sense_mode, priority=self.priority,
             watch_interval=self.watch_interval, bump_backoff=self.bump_backoff,
             announce_connections=self.announce_connections, seed=config.seed,
-            await_horizon=True)  # messages can be lost: agent/ormstc/wire.py repairs them
+            await_acks=True)  # messages can be lost: agent/ormstc/wire.py repairs them
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

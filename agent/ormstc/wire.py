@@ -142,10 +142,12 @@ class Inbound:
                 out.append((item, message))
         return out
 
-    def heartbeat(self, robot: int, incarnation: int, said: int, now: float) -> None:
-        """A peer's heartbeat: it had said ``said`` messages (a lost last one shows here)."""
+    def heartbeat(self, robot: int, incarnation: int, said: int, now: float,
+                  acked: int | None = None) -> None:
+        """A peer's heartbeat: it had said ``said`` messages (a lost last one shows here)
+        and taken ``acked`` of ours."""
         if 0 <= robot < self.k and robot != self.me:
-            self.streams.digest(robot, incarnation, said, now)
+            self.streams.digest(robot, incarnation, said, now, acked)
 
     def _deliverable(self, key: str, wire: OrmstcWire) -> Message | None:
         if self._peers_out_of_range(wire):

@@ -40,13 +40,13 @@ class Knowledge:
     released: set[int] = field(default_factory=set)
     completed: set[int] = field(default_factory=set)
     claim_ttl: float = float("inf")
-    # in-order delivery per sender (MachineConfig.await_horizon): a peer's claim, tree edge
+    # in-order delivery per sender (MachineConfig.await_acks): a peer's claim, tree edge
     # or completion settles its earlier claims (it decides one claim at a time), and heard
     # claims never expire by time
     fifo: bool = False
-    # robot -> time of its latest digest all of whose messages were delivered (PeerHorizon)
-    horizon: dict[int, float] = field(default_factory=dict)
-    awaiting: bool = False  # the machine waits for horizons: an advance sets ``changed``
+    # robot -> how many of this machine's broadcasts it has acknowledged (PeerAck)
+    acks: dict[int, float] = field(default_factory=dict)
+    awaiting: bool = False  # the machine waits for acknowledgements: one sets ``changed``
     now: float = 0.0  # the owning machine keeps this current
     claims: ClaimBook = field(init=False)
     changed: bool = False  # a peer finished, withdrew or died since the flag was cleared
@@ -114,19 +114,18 @@ class Knowledge:
             self.dead.add(robot)
             self.changed = True
 
-    def heard_until(self, robot: int, at: float) -> None:
-        """PeerHorizon: everything ``robot`` sent before a digest received at ``at`` is in."""
-        if at > self.horizon.get(robot, float("-inf")):
-            self.horizon[robot] = at
+    def acked(self, robot: int, upto: float) -> None:
+        """PeerAck: ``robot`` had taken our first ``upto`` broadcasts, and all it said before
+        telling us is known."""
+        if upto > self.acks.get(robot, 0):
+            self.acks[robot] = upto
             if self.awaiting:
                 self.changed = True
 
-    def heard_through(self, when: float) -> bool:
-        """Whether every live peer's horizon is at or after ``when``: what each sent before
-        its digest received then (so, with delays up to D, before ``when - D``) is known."""
-        horizon, dead = self.horizon, self.dead
-        return all(horizon.get(robot, float("-inf")) >= when
-                   for robot in self._others if robot not in dead)
+    def acked_by_all(self, index: int) -> bool:
+        """Whether every live peer has acknowledged our broadcast number ``index``."""
+        acks, dead = self.acks, self.dead
+        return all(acks.get(robot, 0) >= index for robot in self._others if robot not in dead)
 
     def _supersede(self, robot: int) -> None:
         """In-order delivery: ``robot`` has decided every claim it said before this message."""

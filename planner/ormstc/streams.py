@@ -6,11 +6,12 @@ peer's life it has taken in order (``heard``). Two halves, both driven with plai
 
 - :class:`PeerStreams` (the receiving side) hands a peer's messages on in ``seq`` order,
   holding back what arrives after a gap (a drop, a loss, a reordering) until the gap is
-  filled, drops what it already has (duplicates, resends) and keeps each peer's **horizon**:
-  the latest receive time of a message or heartbeat whose ``seq`` / ``said`` everything taken
-  in order covers. A horizon at or after t means: every message the peer sent before its
-  digest received at t has been taken in (planner/ormstc/machine.py decides a claim only
-  once every live peer's horizon has passed the end of its window, docs/ormstc.md).
+  filled, drops what it already has (duplicates, resends) and keeps, per peer, its
+  **acknowledgement**: how many of our messages the peer had taken when it sent the latest
+  heartbeat whose ``said`` everything taken here in order covers. So the peer knew our first
+  ``acked`` messages, and we know all it said before it told us (planner/ormstc/machine.py
+  decides a claim only once every live peer has so acknowledged it, docs/ormstc.md), and its
+  **horizon**, the receive time of the latest covered message or heartbeat (for reports).
 - :class:`Resender` (the sending side) remembers when each of its messages was sent and,
   from a peer's ``heard`` in a heartbeat, which ones that peer still lacks: those older than
   ``grace`` (not merely still in flight) are said again with their own numbers, each at most
@@ -37,8 +38,10 @@ class _Stream(Generic[T]):
     life: int
     taken: int = 0  # every seq up to this one handed on
     held: dict[int, T] = field(default_factory=dict)  # seq -> message after a gap
-    digests: list[tuple[int, float]] = field(default_factory=list)  # (seq, received at)
+    # (seq, received at, the receiver's own messages the peer had taken then, if said)
+    digests: list[tuple[int, float, int | None]] = field(default_factory=list)
     horizon: float = NEVER
+    acked: int = 0  # of a covered digest: how many of our messages the peer had taken
     said: int = 0  # the highest seq known to exist
 
 
@@ -71,7 +74,7 @@ class PeerStreams(Generic[T]):
             return []
         self._note_said(stream, seq, seq - 1)
         stream.held[seq] = message
-        stream.digests.append((seq, now))
+        stream.digests.append((seq, now, None))
         out: list[T] = []
         while stream.taken + 1 in stream.held:
             stream.taken += 1
@@ -79,13 +82,15 @@ class PeerStreams(Generic[T]):
         self._advance(stream)
         return out
 
-    def digest(self, robot: int, life: int, said: int, now: float) -> None:
-        """A heartbeat received at ``now`` says the peer had said ``said`` messages."""
+    def digest(self, robot: int, life: int, said: int, now: float,
+               acked: int | None = None) -> None:
+        """A heartbeat received at ``now`` says the peer had said ``said`` messages and had
+        taken ``acked`` of ours in order (None: it named none of our life)."""
         stream = self._stream(robot, life)
         if stream is None:
             return
         self._note_said(stream, said, said)
-        stream.digests.append((said, now))
+        stream.digests.append((said, now, acked))
         self._advance(stream)
 
     def _note_said(self, stream: _Stream[T], seq: int, missing_to: int) -> None:
@@ -96,16 +101,26 @@ class PeerStreams(Generic[T]):
 
     def _advance(self, stream: _Stream[T]) -> None:
         keep = []
-        for seq, at in stream.digests:
+        for digest in stream.digests:
+            seq, at, acked = digest
             if seq <= stream.taken:
                 stream.horizon = max(stream.horizon, at)
+                if acked is not None and acked > stream.acked:
+                    stream.acked = acked
             else:
-                keep.append((seq, at))
+                keep.append(digest)
         stream.digests = keep
 
     def horizon(self, robot: int) -> float:
         stream = self.streams.get(robot)
         return stream.horizon if stream is not None else NEVER
+
+    def acked(self, robot: int) -> int:
+        """How many of our messages ``robot`` had taken in order, by an acknowledgement all
+        of whose preceding messages of the peer have been taken here: the peer knew our
+        first ``acked`` messages, and we know everything it said before saying so."""
+        stream = self.streams.get(robot)
+        return stream.acked if stream is not None else 0
 
     def missing(self, robot: int) -> list[int]:
         """Numbers known to exist (from later messages or a heartbeat) and not yet taken."""
