@@ -97,16 +97,20 @@ def test_a_new_life_restarts_the_numbering_and_fences_the_old() -> None:
 
 
 def test_the_sender_says_again_what_an_acknowledgement_lacks_not_what_is_in_flight() -> None:
-    resender = Resender(life=1, grace=0.2)
+    resender = Resender(life=1, grace=0.2, cap=0.5)
     for seq, at in ((1, 0.0), (2, 0.1), (3, 0.9)):
         resender.said(seq, at)
     assert resender.lacking(1, 3, now=1.0) == []  # everything taken
     assert resender.lacking(2, 0, now=1.0) == []  # another life's acknowledgement
     assert resender.lacking(1, 1, now=1.0) == [2]  # 3 is only 0.1 s old: still in flight
-    assert resender.lacking(1, 1, now=1.1) == [3]  # 2 was just said again
-    assert resender.lacking(1, 1, now=1.25) == [2]
-    assert resender.lacking(1, 1, now=1.5) == [2, 3]
-    assert resender.resent == 5
+    assert resender.lacking(1, 1, now=1.15) == [3]
+    assert resender.lacking(1, 1, now=1.3) == [], "2 waits twice the grace now (0.4 s)"
+    assert resender.lacking(1, 1, now=1.45) == [2]
+    assert resender.lacking(1, 1, now=1.6) == [3]
+    assert resender.lacking(1, 1, now=1.9) == []  # backing off, up to the cap (0.5 s)
+    assert resender.lacking(1, 1, now=1.95) == [2]
+    assert resender.lacking(1, 2, now=2.1) == [3]
+    assert resender.resent == 6
 
 
 # ---- the machine waits for acknowledgements ----

@@ -14,8 +14,8 @@ peer's life it has taken in order (``heard``). Two halves, both driven with plai
   **horizon**, the receive time of the latest covered message or heartbeat (for reports).
 - :class:`Resender` (the sending side) remembers when each of its messages was sent and,
   from a peer's ``heard`` in a heartbeat, which ones that peer still lacks: those older than
-  ``grace`` (not merely still in flight) are said again with their own numbers, each at most
-  once per ``grace``.
+  ``grace`` (not merely still in flight) are said again with their own numbers, then after
+  twice as long, and so on (a slow reader is not flooded).
 
 Neither knows what the messages are: the agent (agent/ormstc/wire.py) keeps the messages,
 this module the numbers.
@@ -136,26 +136,32 @@ class PeerStreams(Generic[T]):
 
 @dataclass
 class Resender:
-    """Which of this robot's messages to say again, from its peers' acknowledgements."""
+    """Which of this robot's messages to say again, from its peers' acknowledgements.
+
+    A message is said again once a peer still lacks it ``grace`` after it was said, then
+    after twice that, and so on up to ``cap``: a peer that is merely slow to read its queue
+    (a loaded host) costs a few resends, not one per heartbeat."""
 
     life: int
     grace: float
-    sent_at: dict[int, float] = field(default_factory=dict)  # seq -> last time said
+    cap: float = 2.0
+    due: dict[int, tuple[float, float]] = field(default_factory=dict)  # seq -> (at, interval)
     resent: int = 0
 
     def said(self, seq: int, now: float) -> None:
-        self.sent_at[seq] = now
+        self.due[seq] = (now + self.grace, self.grace)
 
     def lacking(self, life: int, taken: int, now: float) -> list[int]:
         """The numbers to say again for a peer that has taken ``taken`` of life ``life``
-        in order: the ones said after it, at least ``grace`` ago; marked as said now."""
+        in order: the ones said after it whose time has come."""
         if life != self.life:
             return []
         out = []
-        for seq in range(taken + 1, len(self.sent_at) + 1):
-            at = self.sent_at.get(seq)
-            if at is not None and now - at >= self.grace:
-                self.sent_at[seq] = now
+        for seq in range(taken + 1, len(self.due) + 1):
+            at, interval = self.due[seq]
+            if now >= at:
+                interval = min(2 * interval, self.cap)
+                self.due[seq] = (now + interval, interval)
                 out.append(seq)
         self.resent += len(out)
         return out
