@@ -299,6 +299,7 @@ async def test_four_robots_cover_everything_once(bus: Bus, router: str, room: Pa
 
 
 @pytest.mark.integration
+@pytest.mark.slow
 async def test_lost_claims_and_edges_cause_no_double_work(bus: Bus, router: str,
                                                           room: Path) -> None:
     """30 % of the ORMSTC messages dropped at the publisher, 10 % more lost per receiver,

@@ -100,7 +100,8 @@ class OrmstcAgent(BodyAgent):
         self.log: list[OrmstcWire] = []  # what this life said, by seq - 1 (for resends)
         # a message a peer's heartbeat shows lacking is said again once older than this (not
         # merely in flight or unread: a loaded host reads its queue late), then backing off
-        self.resender = Resender(config.incarnation, grace=max(0.5, 2.5 * config.heartbeat_period))
+        self.resender = Resender(config.incarnation, grace=max(0.3, 1.5 * config.heartbeat_period),
+                                 cap=1.0)
         self.resent_bytes = 0
         self.broadcasts = 0  # the machine's Broadcasts published (its numbering of them)
         self.index_of_seq: list[int] = []  # per published seq: broadcasts published by then

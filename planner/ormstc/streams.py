@@ -144,7 +144,7 @@ class Resender:
 
     life: int
     grace: float
-    cap: float = 2.0
+    cap: float = 1.0
     due: dict[int, tuple[float, float]] = field(default_factory=dict)  # seq -> (at, interval)
     resent: int = 0
 
