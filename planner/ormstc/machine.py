@@ -305,17 +305,15 @@ class OrmstcMachine:
         return outcome.won
 
     def _await_acks(self, index: int) -> Flow:
-        """Wait until every live peer has acknowledged broadcast ``index`` (this claim) and
-        all it said before is known: a rival claim or tree edge lost on the way is then
-        repaired before the decision (docs/ormstc.md, "Claims under message loss")."""
+        """Wait until every live peer acknowledged broadcast ``index`` (this claim) and all it
+        said before is known (docs/ormstc.md, "Claims under message loss")."""
         know = self.know
-        if know.acked_by_all(index):
-            return None
-        while not know.acked_by_all(index):
-            know.awaiting, know.changed = True, False
-            yield (_WAKE, self.now + self.config.claim_wait)
-        know.awaiting = False
-        self.ack_waits += 1
+        if not know.acked_by_all(index):
+            self.ack_waits += 1
+            while not know.acked_by_all(index):
+                know.awaiting, know.changed = True, False
+                yield (_WAKE, self.now + self.config.claim_wait)
+            know.awaiting = False
         return None
 
     def _grow(self, cell: Cell, side: int) -> None:
