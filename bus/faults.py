@@ -53,7 +53,12 @@ class FaultSpec:
     window: float = 0.2
 
     def rates(self, kind: str) -> FaultRates | None:
-        return self.rules.get(kind, self.rules.get(ANY))
+        """The rule of a key kind: its own ("ormstc/claim"), else its family's ("ormstc"),
+        else ``*``."""
+        rates = self.rules.get(kind)
+        if rates is None and "/" in kind:
+            rates = self.rules.get(kind.split("/", 1)[0])
+        return rates if rates is not None else self.rules.get(ANY)
 
     def text(self) -> str:
         """The spec as parse_spec reads it back."""

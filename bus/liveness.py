@@ -196,6 +196,8 @@ class HeartbeatInfo:
     pose: Pose | None = None
     state: str = "running"
     sim_time: float = 0.0
+    said: int = 0  # numbered messages said this life (Heartbeat.said)
+    heard: tuple[tuple[int, int, int], ...] = ()  # Heartbeat.heard
 
 
 class HeartbeatPublisher:
@@ -216,7 +218,8 @@ class HeartbeatPublisher:
         info = self._info()
         self.seq += 1
         self._bus.publish(self._key, Heartbeat(self.robot, self.incarnation, self.seq,
-                                               info.pose, info.state, info.sim_time))
+                                               info.pose, info.state, info.sim_time,
+                                               info.said, info.heard))
 
     async def run(self) -> None:
         while True:

@@ -93,7 +93,8 @@ def test_every_registered_type_is_exercised() -> None:
     assert expected <= set(MESSAGE_TYPES)
 
 
-HB = Heartbeat(robot=1, incarnation=2, seq=3, pose=(4, 5, 1), state="covering", sim_time=1.5)
+HB = Heartbeat(robot=1, incarnation=2, seq=3, pose=(4, 5, 1), state="covering", sim_time=1.5,
+               said=9, heard=((0, 1, 4), (2, 1, 7)))
 
 
 def raw_of(msg: Any) -> dict[str, Any]:
@@ -104,6 +105,12 @@ def raw_of(msg: Any) -> dict[str, Any]:
 def pack(raw: Any) -> bytes:
     data: bytes = msgpack.packb(raw, use_bin_type=True)
     return data
+
+
+def test_a_heartbeat_with_loss_repair_fields_round_trips() -> None:
+    assert decode(encode(HB), Heartbeat) == HB
+    plain = Heartbeat(1, 2, 3, None, "covering", 1.5)  # other algorithms: 0 and ()
+    assert decode(encode(plain), Heartbeat) == plain and plain.said == 0 and plain.heard == ()
 
 
 @pytest.mark.parametrize(("mutate", "match"), [
@@ -122,6 +129,10 @@ def pack(raw: Any) -> bytes:
     (lambda r: r.update({"pose": [1, 2]}), "pose"),
     (lambda r: r.update({"pose": [1, 2, "x"]}), "pose"),
     (lambda r: r.update({"sim_time": "soon"}), "sim_time"),
+    (lambda r: r.pop("said"), "missing"),
+    (lambda r: r.update({"said": -1.5}), "said"),
+    (lambda r: r.update({"heard": [[0, 1]]}), "heard"),
+    (lambda r: r.update({"heard": [[0, 1, "4"]]}), "heard"),
 ])
 def test_strict_decoding_rejects(mutate: Any, match: str) -> None:
     raw = raw_of(HB)

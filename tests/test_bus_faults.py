@@ -22,6 +22,12 @@ def test_a_spec_reads_back_and_rejects_mistakes_in_one_line() -> None:
     assert spec.seed == 7 and spec.window == 0.1
     assert spec.rates("progress") is not None and spec.rates("progress").drop == 0.1
     assert spec.rates("status") == spec.rules["*"]
+    # a family's rule covers its kinds (keys.kind_of says "ormstc/claim"), unless they have
+    # their own
+    assert spec.rates("ormstc/claim") == spec.rules["ormstc"]
+    own = parse_spec("ormstc.drop=0.3;ormstc/claim.drop=0.5")
+    assert own.rates("ormstc/claim").drop == 0.5 and own.rates("ormstc/tree").drop == 0.3
+    assert own.rates("hb") is None
     assert parse_spec(spec.text()) == spec
     for bad in ("progress.drop", "progress.melt=0.1", "progress.drop=2", "x=y"):
         with pytest.raises(FaultSpecError):

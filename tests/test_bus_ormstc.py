@@ -104,22 +104,32 @@ def test_strict_decoding_rejects_each_broken_field(cls: type[Any]) -> None:
         decode(encode(wire), OrmstcClaim if cls is not OrmstcClaim else OrmstcTreeEdge)
 
 
-def test_inbound_drops_what_it_must_and_counts_gaps() -> None:
+def test_inbound_drops_what_it_must_and_holds_back_after_a_gap() -> None:
     drops = DropCounter()
     inbound = Inbound(me=0, k=3, drops=drops)
     claim = OrmstcClaim(1, 1, 1, (0, 0), 0)
-    assert inbound.accept(keys.ormstc_claim("m", 1), claim) == ClaimMsg(1, (0, 0), 0)
-    assert inbound.accept(keys.ormstc_claim("m", 2), claim) is None  # key names robot 2
-    assert inbound.accept(keys.ormstc_claim("m", 5), OrmstcClaim(5, 1, 1, (0, 0), 0)) is None
-    assert inbound.accept(keys.ormstc_claim("m", 0), OrmstcClaim(0, 1, 1, (0, 0), 0)) is None
+    assert inbound.accept(keys.ormstc_claim("m", 1), claim) == [(claim, ClaimMsg(1, (0, 0), 0))]
+    assert inbound.accept(keys.ormstc_claim("m", 2), claim) == []  # key names robot 2
+    assert inbound.accept(keys.ormstc_claim("m", 5), OrmstcClaim(5, 1, 1, (0, 0), 0)) == []
+    assert inbound.accept(keys.ormstc_claim("m", 0), OrmstcClaim(0, 1, 1, (0, 0), 0)) == []
     dead = OrmstcDeadRobot(1, 1, 2, 9)  # names robot 9, outside the fleet
-    assert inbound.accept(keys.ormstc_dead("m", 1), dead) is None
+    assert inbound.accept(keys.ormstc_dead("m", 1), dead) == []
     assert drops.total(reason="invalid") == 3
-    # seq 2 and 3 lost: counted, the message is still delivered
+    # seq 3 and 4 lost: counted, and the edge (5) is held back until they come
     edge = OrmstcTreeEdge(1, 1, 5, (0, 0), (0, 1))
-    assert inbound.accept(keys.ormstc_tree("m", 1), edge) == TreeEdgeMsg(1, (0, 0), (0, 1))
+    assert inbound.accept(keys.ormstc_tree("m", 1), edge, now=1.0) == []
     assert inbound.gaps == 2 and drops.total(reason="gap") == 1
+    assert inbound.streams.missing(1) == [3, 4]
+    assert inbound.streams.horizon(1) == 0.0  # the first claim's arrival
+    late = OrmstcClaim(1, 1, 4, (0, 1), 1)
+    assert inbound.accept(keys.ormstc_claim("m", 1), late, now=2.0) == []
+    resent = OrmstcClaim(1, 1, 3, (0, 2), 1)
+    assert [m for _, m in inbound.accept(keys.ormstc_claim("m", 1), resent, now=3.0)] == [
+        ClaimMsg(1, (0, 2), 1), ClaimMsg(1, (0, 1), 1), TreeEdgeMsg(1, (0, 0), (0, 1))]
+    assert inbound.streams.horizon(1) == 3.0
+    assert inbound.accept(keys.ormstc_claim("m", 1), resent, now=4.0) == []  # a duplicate
+    assert inbound.streams.duplicates == 1
     # a new life starts its numbering again; the old life is fenced from then on
     assert inbound.accept(keys.ormstc_claim("m", 1), OrmstcClaim(1, 2, 1, (5, 5), 0))
-    assert inbound.accept(keys.ormstc_claim("m", 1), OrmstcClaim(1, 1, 5, (5, 5), 0)) is None
+    assert inbound.accept(keys.ormstc_claim("m", 1), OrmstcClaim(1, 1, 5, (5, 5), 0)) == []
     assert drops.total(reason="stale") == 1 and inbound.gaps == 2

@@ -61,7 +61,7 @@ from bus.messages.schema import (
 
 # One example of every kind in the table; a new row needs one here (see the first test).
 EXAMPLES: dict[type[Any], Any] = {ex.__class__: ex for ex in (
-    Heartbeat(3, 2, 7, (1, 2, 3), "covering", 1.5),
+    Heartbeat(3, 2, 7, (1, 2, 3), "covering", 1.5, 4, ((0, 1, 2),)),
     RobotStatus(3, 2, (4, 5), "opt", "abc", "covering", "hi"),
     RobotEvent(3, 2, "takeover_started", 1, "walking"),
     DeathNotice(1, 0, 3, "token", 12.5),

@@ -146,10 +146,16 @@ async def test_a_process_fault_is_survived(kind: str, tmp_path: Path) -> None:
 
 @pytest.mark.integration
 @pytest.mark.slow
+@pytest.mark.parametrize("algo", ["nb", "ormstc"])
 async def test_message_loss_duplication_delay_and_reordering_are_survived(
-        tmp_path: Path) -> None:
+        algo: str, tmp_path: Path) -> None:
+    # ormstc: the verdict includes "no double work" from the recording (lost claims are
+    # repaired before a claim is decided, docs/ormstc.md "Claims under message loss"); its
+    # LookSteps are left alone as in the campaign (a lost one blinds the report, not a robot)
     spec = "seed=4;*.drop=0.05;*.lose=0.05;*.dup=0.1;*.delay=0.05;*.reorder=0.1;window=0.1"
-    await _judged(_trial("nb", 3, messages=spec), tmp_path)
+    if algo == "ormstc":
+        spec += ";look.dup=0"
+    await _judged(_trial(algo, 3, messages=spec), tmp_path)
 
 
 @pytest.mark.integration

@@ -122,17 +122,21 @@ def test_a_restatement_delivers_only_what_was_missed() -> None:
     said: list[Message] = [StartMsg(1, (2, 2)), ClaimMsg(1, (1, 2), 1),
                            TreeEdgeMsg(1, (1, 1), (1, 2)), DeadRobotMsg(1, 2),
                            CompletionMsg(1, 2)]
-    delivered = [rx.accept(keys.ormstc_tree("m", 1), to_wire(msg, 1, seq))
-                 for seq, msg in enumerate(said[:3], 1)]  # the router went away after these
+    delivered = [m for seq, msg in enumerate(said[:3], 1)  # the router went away after these
+                 for _, m in rx.accept(keys.ormstc_tree("m", 1), to_wire(msg, 1, seq))]
     assert delivered == said[:3]
     restated: list[Message] = [StartMsg(1, (2, 2)), TreeEdgeMsg(1, (1, 1), (1, 2)),
                                DeadRobotMsg(1, 2), CompletionMsg(1, 2)]
-    again = [rx.accept(keys.ormstc_tree("m", 1), to_wire(msg, 1, seq))
-             for seq, msg in enumerate(restated, 6)]
-    assert again == [None, None, DeadRobotMsg(1, 2), CompletionMsg(1, 2)]
-    assert rx.repeats == 2 and rx.gaps == 2  # seq 4 and 5 were lost
+    again = [m for seq, msg in enumerate(restated, 6)
+             for _, m in rx.accept(keys.ormstc_tree("m", 1), to_wire(msg, 1, seq))]
+    assert again == [] and rx.gaps == 2  # seq 4 and 5 were lost: the rest waits for them
+    assert rx.streams.missing(1) == [4, 5]
+    resent = [m for seq in (4, 5)  # said again (a heartbeat showed them lacking)
+              for _, m in rx.accept(keys.ormstc_tree("m", 1), to_wire(said[seq - 1], 1, seq))]
+    assert resent == [DeadRobotMsg(1, 2), CompletionMsg(1, 2), CompletionMsg(1, 2)]
+    assert rx.repeats == 3  # the restated start, edge and freed robot
     # a new life says everything afresh
-    assert rx.accept(keys.ormstc_tree("m", 1), to_wire(StartMsg(1, (2, 2)), 2, 1)) is not None
+    assert rx.accept(keys.ormstc_tree("m", 1), to_wire(StartMsg(1, (2, 2)), 2, 1))
 
 
 def test_rejoin_restates_after_a_silence_and_merges_a_fleet_coming_back() -> None:

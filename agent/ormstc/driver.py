@@ -54,6 +54,7 @@ from bus.messages import (
 )
 from planner.ormstc.conflicts import restate
 from planner.ormstc.machine import OrmstcMachine
+from planner.ormstc.streams import Resender
 from planner.ormstc.types import (
     AliveResult,
     Broadcast,
@@ -64,6 +65,7 @@ from planner.ormstc.types import (
     Message,
     Move,
     MoveResult,
+    PeerAck,
     PeerDied,
     PeerMessage,
     Request,
@@ -95,6 +97,15 @@ class OrmstcAgent(BodyAgent):
         self.sent_bytes = 0
         self._static_bumps = 0
         self.book = TreeBook()
+        self.log: list[OrmstcWire] = []  # what this life said, by seq - 1 (for resends)
+        # a message a peer's heartbeat shows lacking is said again once older than this (not
+        # merely in flight or unread: a loaded host reads its queue late), then backing off
+        self.resender = Resender(config.incarnation, grace=max(0.3, 1.5 * config.heartbeat_period),
+                                 cap=1.0)
+        self.resent_bytes = 0
+        self.broadcasts = 0  # the machine's Broadcasts published (its numbering of them)
+        self.index_of_seq: list[int] = []  # per published seq: broadcasts published by then
+        self._acks: dict[int, float] = {}
         # a peer silent this long was cut off: restate (docs/ormstc.md, "Router restarts")
         self.rejoin = Rejoin(silence=max(1.0, 5 * config.heartbeat_period))
 
@@ -115,7 +126,8 @@ class OrmstcAgent(BodyAgent):
         bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
 
     def _heartbeat_info(self) -> HeartbeatInfo:
-        return HeartbeatInfo(pose=self.body.pose, state=self.state)
+        return HeartbeatInfo(pose=self.body.pose, state=self.state, said=self.sent,
+                             heard=self.inbound.streams.heard())
 
     def _wake(self, event: Event | None = None) -> None:
         if event is not None:
@@ -123,10 +135,20 @@ class OrmstcAgent(BodyAgent):
         self.news.set()
 
     def _on_ormstc(self, key: str, wire: OrmstcWire) -> None:
-        msg = self.inbound.accept(key, wire)
-        if msg is not None:
-            self.book.heard(wire)
-            self._wake(PeerMessage(wire.robot, msg))
+        for item, msg in self.inbound.accept(key, wire, self.now()):
+            self.book.heard(item)
+            self._wake(PeerMessage(item.robot, msg))
+        self._ack(wire.robot)
+
+    def _ack(self, robot: int, upto: float | None = None) -> None:
+        """Tell the machine how many of its broadcasts a peer acknowledged, counting only
+        acknowledgements all of whose preceding messages are in (planner.ormstc.streams)."""
+        if upto is None:
+            taken = min(self.inbound.streams.acked(robot), len(self.index_of_seq))
+            upto = self.index_of_seq[taken - 1] if taken > 0 else 0
+        if upto > self._acks.get(robot, 0):
+            self._acks[robot] = upto
+            self._wake(PeerAck(robot, upto))
 
     def _on_status(self, key: str, status: RobotStatus) -> None:
         if 0 <= status.robot < self.config.k and status.robot != self.robot:
@@ -136,8 +158,23 @@ class OrmstcAgent(BodyAgent):
     def _on_heartbeat(self, key: str, hb: Heartbeat) -> None:
         if hb.pose is not None and hb.robot != self.robot:
             self.peer_cells[hb.robot] = cell_of((hb.pose[0], hb.pose[1]))
-        if hb.robot != self.robot and self.rejoin.heard(hb.robot, self.now()):
+        if hb.robot == self.robot or not 0 <= hb.robot < self.config.k:
+            return
+        now = self.now()
+        if self.rejoin.heard(hb.robot, now):
             self._wake()
+        mine = [(life, taken) for robot, life, taken in hb.heard if robot == self.robot]
+        acked = next((taken for life, taken in mine if life == self.config.incarnation), None)
+        self.inbound.heartbeat(hb.robot, hb.incarnation, hb.said, now, acked)
+        self._ack(hb.robot)
+        for life, taken in mine:
+            for seq in self.resender.lacking(life, taken, now):
+                self._resend(self.log[seq - 1])
+
+    def _resend(self, wire: OrmstcWire) -> None:
+        """Say a message again with its own number: a peer lacks it (lost on the way)."""
+        self.resent_bytes += len(encode(wire))
+        self.bus.publish(key_for(self.bus.mission, wire), wire)
 
     def _on_death(self, notice: DeathNotice) -> None:
         robot = notice.robot
@@ -145,6 +182,7 @@ class OrmstcAgent(BodyAgent):
             return
         self.dead.add(robot)
         self.announcer.set(keys.death(self.bus.mission, robot), notice, publish=False)
+        self._ack(robot, float("inf"))  # nothing more to wait for from it
         status = self.statuses.get(robot)
         if status is not None and status.state == "done":
             return  # it left after the mission was over for it: nothing to take over
@@ -172,6 +210,7 @@ class OrmstcAgent(BodyAgent):
                 message, self._roster_wire(state)))
 
     def _broadcast(self, request: Broadcast) -> None:
+        self.broadcasts += 1
         self.book.sent(self._publish(request.message))
         if isinstance(request.message, DeadRobotMsg):  # for monitors and mstc up's summary
             self._event("takeover_started", request.message.dead, "its cells are free again")
@@ -179,6 +218,9 @@ class OrmstcAgent(BodyAgent):
     def _publish(self, message: Message) -> OrmstcWire:
         self.sent += 1
         wire = to_wire(message, self.config.incarnation, self.sent)
+        self.log.append(wire)
+        self.index_of_seq.append(self.broadcasts)
+        self.resender.said(self.sent, self.now())
         self.sent_bytes += len(encode(wire))
         self.bus.publish(key_for(self.bus.mission, wire), wire)
         return wire
@@ -303,7 +345,9 @@ class OrmstcAgent(BodyAgent):
 
     def _finished(self, done: bool, machine: OrmstcMachine) -> None:
         detail = (f"{machine.moves} moves, {len(machine.mine)} cells, {self.sent} messages, "
-                  f"{self.sent_bytes} bytes, {self.sonar.steps} steps to look, "
+                  f"{self.sent_bytes} bytes, {self.resender.resent} resent "
+                  f"({self.resent_bytes} bytes), {machine.ack_waits} claims waited for "
+                  f"acknowledgements, {self.sonar.steps} steps to look, "
                   f"{self.sonar.glance_readings} readings after moves")
         if done:
             self._status("done")
@@ -323,6 +367,9 @@ class OrmstcAgent(BodyAgent):
         for robot, sub in sorted(self.roster.items()):
             if robot != self.robot:
                 self.pending.append(PeerMessage(robot, StartMsg(robot, sub)))
+        for robot in range(self.config.k):  # non-participants say nothing to wait for
+            if robot not in self.roster or robot in self.dead:
+                self._ack(robot, float("inf"))
         self._status("covering")
         self._event("started")
         self._say("driving")
@@ -330,7 +377,10 @@ class OrmstcAgent(BodyAgent):
         m = self.machine
         self._say(f"completed after {m.moves} moves; {len(m.conflicts)} claim conflicts "
                   f"({m.cut} cells handed over), {self.rejoin.count} restatements, "
-                  f"{self.inbound.repeats} repeats heard")
+                  f"{self.inbound.repeats} repeats heard, {self.inbound.gaps} missing "
+                  f"messages of peers seen, {self.inbound.streams.duplicates} duplicates, "
+                  f"{self.resender.resent} resent, {m.ack_waits} claims waited for "
+                  "acknowledgements")
 
 
 def drive(config: AgentConfig, options: OrmstcOptions, settings: ConnectionSettings) -> int:

@@ -41,7 +41,8 @@ class OrmstcOptions:
             robot=config.robot, team=config.k, start=(float(start[0]), float(start[1])),
             claim_wait=self.claim_wait, sense_mode=self.sense_mode, priority=self.priority,
             watch_interval=self.watch_interval, bump_backoff=self.bump_backoff,
-            announce_connections=self.announce_connections, seed=config.seed)
+            announce_connections=self.announce_connections, seed=config.seed,
+            await_acks=True)  # messages can be lost: agent/ormstc/wire.py repairs them
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

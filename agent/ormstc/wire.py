@@ -5,8 +5,12 @@ becomes its bus.messages twin with the sender's ``incarnation`` and ``seq`` (1, 
 life, over all ORMSTC kinds), published on ``mstc/<m>/ormstc/<kind>/<robot>``. All kinds share
 one QoS (bus.qos CRITICAL), so one sender's messages stay in order across keys: the machine
 assumes FIFO per sender. A receiver drops (and counts) a message about a robot outside the
-fleet, on a key naming another robot, or from a life older than one already heard; a gap in
-``seq`` is counted. What Zenoh loses during a router outage is not repaired message by
+fleet, on a key naming another robot, or from a life older than one already heard. Each
+sender's messages are delivered in ``seq`` order (planner.ormstc.streams): a duplicate is
+dropped, a gap (a message dropped, lost or reordered on the way) is counted and what follows
+it held back until the gap is filled; the sender says a message again when a peer's
+heartbeat shows it lacking (``Heartbeat.heard``), and its heartbeat's ``said`` shows a lost
+last message. What Zenoh loses during a router outage is not repaired message by
 message: when a peer is heard again after a silence (:class:`Rejoin`), every robot restates
 what its peers must know of it (planner.ormstc.conflicts.restate) with fresh ``seq`` numbers,
 and a receiver drops a start, tree edge or freed robot it already heard from that life
@@ -32,6 +36,7 @@ from bus.messages import (
     OrmstcWire,
     OrmstcWithdrawal,
 )
+from planner.ormstc.streams import PeerStreams
 from planner.ormstc.types import (
     ClaimMsg,
     CompletionMsg,
@@ -94,41 +99,60 @@ def key_for(mission: str, wire: OrmstcWire) -> str:
 
 @dataclass
 class Inbound:
-    """Per-sender bookkeeping of received ORMSTC messages (one robot's view of the fleet)."""
+    """Per-sender bookkeeping of received ORMSTC messages (one robot's view of the fleet):
+    checks, then in-order delivery per sender life with duplicates removed and gaps held
+    back until repaired (planner.ormstc.streams.PeerStreams)."""
 
     me: int
     k: int
     drops: DropCounter
-    life: dict[int, int] = field(default_factory=dict)  # robot -> newest incarnation heard
-    last_seq: dict[int, int] = field(default_factory=dict)
-    gaps: int = 0
+    streams: PeerStreams[OrmstcWire] = field(default_factory=PeerStreams)
     repeats: int = 0  # facts heard again (restatements), not delivered
     _facts: set[tuple[object, ...]] = field(default_factory=set)
 
-    def accept(self, key: str, wire: OrmstcWire) -> Message | None:
-        """The machine message to deliver, or None (own echo, or dropped and counted)."""
+    @property
+    def gaps(self) -> int:
+        return self.streams.gaps
+
+    def accept(self, key: str, wire: OrmstcWire,
+               now: float = 0.0) -> list[tuple[OrmstcWire, Message]]:
+        """The messages to deliver now, in the sender's order (none: own echo, dropped and
+        counted, a duplicate, or held back behind a gap)."""
         robot = wire.robot
         kind = keys.kind_of(key)
         parsed = keys.parse(key)
         if parsed is None or parsed.robot != robot or not 0 <= robot < self.k:
             self.drops.count(kind, "invalid", f"robot {robot} on {key} (fleet 0..{self.k - 1})")
-            return None
+            return []
         if robot == self.me:
-            return None
-        newest = self.life.get(robot, wire.incarnation)
-        if wire.incarnation < newest:
+            return []
+        if self.streams.stale(robot, wire.incarnation):
+            newest = self.streams.streams[robot].life
             self.drops.count(kind, "stale", f"robot {robot} life {wire.incarnation} < {newest}")
-            return None
-        if wire.incarnation > newest:
-            self.last_seq.pop(robot, None)
-        self.life[robot] = wire.incarnation
-        expected = self.last_seq.get(robot, 0) + 1
-        if wire.seq > expected:
-            self.gaps += wire.seq - expected
-            self.drops.count(kind, "gap", f"robot {robot}: seq {wire.seq}, expected {expected}")
-        self.last_seq[robot] = max(wire.seq, self.last_seq.get(robot, 0))
+            return []
+        gaps = self.streams.gaps
+        taken = self.streams.receive(robot, wire.incarnation, wire.seq, wire, now)
+        if self.streams.gaps > gaps:
+            self.drops.count(kind, "gap", f"robot {robot}: seq {wire.seq}, "
+                             f"{self.streams.gaps - gaps} missing before it (held back)")
+        out = []
+        for item in taken:
+            message = self._deliverable(key, item)
+            if message is not None:
+                out.append((item, message))
+        return out
+
+    def heartbeat(self, robot: int, incarnation: int, said: int, now: float,
+                  acked: int | None = None) -> None:
+        """A peer's heartbeat: it had said ``said`` messages (a lost last one shows here)
+        and taken ``acked`` of ours."""
+        if 0 <= robot < self.k and robot != self.me:
+            self.streams.digest(robot, incarnation, said, now, acked)
+
+    def _deliverable(self, key: str, wire: OrmstcWire) -> Message | None:
         if self._peers_out_of_range(wire):
-            self.drops.count(kind, "invalid", f"{wire} names a robot outside the fleet")
+            self.drops.count(keys.kind_of(key), "invalid", f"{wire} names a robot outside "
+                             "the fleet")
             return None
         fact = _fact(wire)
         if fact is not None:

@@ -17,6 +17,11 @@ EventKind = Literal[
 
 @dataclass(frozen=True)
 class Heartbeat:
+    """A robot's sign of life. ``said`` and ``heard`` serve loss repair of its algorithm's
+    numbered messages (ORMSTC, planner.ormstc.streams; 0 and () elsewhere): how many it has
+    said this life, and (robot, incarnation, seq) of the last message of each peer it has
+    taken in order."""
+
     KIND: ClassVar[str] = "heartbeat"
     robot: int
     incarnation: int
@@ -24,6 +29,8 @@ class Heartbeat:
     pose: Pose | None
     state: str
     sim_time: float
+    said: int = 0
+    heard: tuple[tuple[int, int, int], ...] = ()
 
 
 @dataclass(frozen=True)

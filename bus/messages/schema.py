@@ -42,8 +42,8 @@ from bus.messages.world import BumpEvent, CoverEvent, GroundTruthPose, RobotTrut
 # since (docs/protocol.md, "Versioning rule"), so one kind's change does not make old
 # recordings of the others unreadable.
 # 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims; 3: TreeReport.gone/.dead;
-# 4: RobotStatus.roster
-SCHEMA_VERSION = 4
+# 4: RobotStatus.roster; 5: Heartbeat.said/.heard
+SCHEMA_VERSION = 5
 
 
 class QosClass(enum.Enum):
@@ -146,7 +146,7 @@ WALK_CACHE = 4096  # one sample per move: cover events, progress, look steps, ed
 
 KINDS: tuple[Kind, ...] = (
     # a robot's life (bus.messages.lifecycle)
-    Kind(Heartbeat, (family("hb/{robot}", access=BY_OWN),), C.HEARTBEAT),
+    Kind(Heartbeat, (family("hb/{robot}", access=BY_OWN),), C.HEARTBEAT, since=5),
     Kind(RobotStatus, (family("status/{robot}", access=BY_OWN, cache=STATE_CACHE),),
          C.CRITICAL, since=4),
     Kind(RobotEvent, (family("event/{robot}", access=BY_OWN, cache=EVENT_CACHE),), C.CRITICAL),

@@ -40,6 +40,13 @@ class Knowledge:
     released: set[int] = field(default_factory=set)
     completed: set[int] = field(default_factory=set)
     claim_ttl: float = float("inf")
+    # in-order delivery per sender (MachineConfig.await_acks): a peer's claim, tree edge
+    # or completion settles its earlier claims (it decides one claim at a time), and heard
+    # claims never expire by time
+    fifo: bool = False
+    # robot -> how many of this machine's broadcasts it has acknowledged (PeerAck)
+    acks: dict[int, float] = field(default_factory=dict)
+    awaiting: bool = False  # the machine waits for acknowledgements: one sets ``changed``
     now: float = 0.0  # the owning machine keeps this current
     claims: ClaimBook = field(init=False)
     changed: bool = False  # a peer finished, withdrew or died since the flag was cleared
@@ -58,6 +65,8 @@ class Knowledge:
         self._pending = self.claims.pending  # the same dict, one attribute nearer
         self._fewest = self.priority is Priority.FEWEST
         self._others = frozenset(range(self.team)) - {self.me}
+        self._expiry = float("inf") if self.fifo else self.claim_ttl
+        self._claimed: dict[int, set[Cell]] = {}  # robot -> cells it claimed (fifo only)
         self.handlers = {TreeEdgeMsg: self._hear_edge, ClaimMsg: self._hear_claim,
                          StartMsg: self._hear_start, CompletionMsg: self._hear_completion,
                          WithdrawalMsg: self._hear_withdrawal, DeadRobotMsg: self._hear_dead}
@@ -105,6 +114,30 @@ class Knowledge:
             self.dead.add(robot)
             self.changed = True
 
+    def acked(self, robot: int, upto: float) -> None:
+        """PeerAck: ``robot`` had taken our first ``upto`` broadcasts, and all it said before
+        telling us is known."""
+        if upto > self.acks.get(robot, 0):
+            self.acks[robot] = upto
+            if self.awaiting:
+                self.changed = True
+
+    def acked_by_all(self, index: int) -> bool:
+        """Whether every live peer has acknowledged our broadcast number ``index``."""
+        acks, dead = self.acks, self.dead
+        return all(acks.get(robot, 0) >= index for robot in self._others if robot not in dead)
+
+    def _supersede(self, robot: int) -> None:
+        """In-order delivery: ``robot`` has decided every claim it said before this message."""
+        cells = self._claimed.pop(robot, None)
+        if not cells:
+            return
+        pending = self._pending
+        for cell in cells:
+            heard = pending.get(cell)
+            if heard is not None and heard.pop(robot, None) is not None and not heard:
+                del pending[cell]
+
     def hear(self, message: Message) -> None:
         """Update the map from a peer's message (order across senders is arbitrary)."""
         handler = self.handlers.get(message.__class__)
@@ -124,12 +157,17 @@ class Knowledge:
         else:
             self.own(child, robot)
         self._pending.pop(child, None)  # claims.settle
+        if self.fifo:
+            self._supersede(robot)
 
     def _hear_claim(self, message: ClaimMsg) -> None:
         # ClaimBook.hear with priority_key inlined: every robot hears every claim
         robot = message.robot
         claim = ((-message.covered, robot) if self._fewest else (0, robot),
-                 self.now + self.claim_ttl)
+                 self.now + self._expiry)
+        if self.fifo:
+            self._supersede(robot)
+            self._claimed[robot] = {message.cell}
         pending = self._pending
         heard = pending.get(message.cell)
         if heard is None:
@@ -144,6 +182,8 @@ class Knowledge:
         self.changed = True
 
     def _hear_completion(self, message: CompletionMsg) -> None:
+        if self.fifo:
+            self._supersede(message.robot)
         self.completed.add(message.robot)
         self.changed = True
 

@@ -40,6 +40,7 @@ from planner.ormstc.types import (
     Message,
     Move,
     MoveResult,
+    PeerAck,
     PeerDied,
     PeerMessage,
     Request,
@@ -67,7 +68,7 @@ class OrmstcMachine:
         # a claim heard at t is decided by t + wait and its edge heard by t + wait + D, with
         # D <= (wait + 1) / 2; 2 wait + 1 is past both
         self.know = Knowledge(config.robot, config.team, config.priority,
-                              claim_ttl=2 * config.claim_wait + 1)
+                              claim_ttl=2 * config.claim_wait + 1, fifo=config.await_acks)
         self.now = 0.0
         start = config.start
         self.home: SubCell = (round(start[0]), round(start[1]))
@@ -86,6 +87,8 @@ class OrmstcMachine:
         self.moves = 0
         self.bumps = 0
         self.sense_turns = 0
+        self.ack_waits = 0  # claims that waited past their window for acknowledgements
+        self.broadcasts = 0  # Broadcast requests returned by step (their index, from 1)
         self.takeovers = 0
         self.finished = False  # announced completion and not withdrawn
         self.idle = False  # finished with nothing to take over; waiting for peers
@@ -118,6 +121,8 @@ class OrmstcMachine:
                     self.now = know.now = event.now  # type: ignore[union-attr]
             elif kind is PeerDied:
                 know.mark_dead(event.robot)  # type: ignore[union-attr]
+            elif kind is PeerAck:
+                know.acked(event.robot, event.upto)  # type: ignore[union-attr]
             else:
                 self._answer = event
         if know.conflicts or self.ceded:
@@ -125,6 +130,8 @@ class OrmstcMachine:
         if self._ready():
             self._advance()
         out, self.outbox = self.outbox, []
+        if self.config.await_acks:
+            self.broadcasts += sum(1 for r in out if r.__class__ is Broadcast)
         return out
 
     def wake_time(self) -> float | None:
@@ -285,7 +292,10 @@ class OrmstcMachine:
         covered = len(self.mine)
         know.claims.hear(target, self.me, covered, self.now)
         self.outbox.append(Broadcast(ClaimMsg(self.me, target, covered)))
+        index = self.broadcasts + sum(1 for r in self.outbox if r.__class__ is Broadcast)
         yield (_UNTIL, self.now + self.config.claim_wait)
+        if self.config.await_acks:
+            yield from self._await_acks(index)
         outcome = know.claims.decide(target, self.me, know.live_owner(target), know.dead,
                                      self.now)
         if cell in self.ceded:
@@ -293,6 +303,18 @@ class OrmstcMachine:
         if not outcome.won and outcome.winner is not None:
             self._connect(outcome.winner, cell, target, unsure=know.live_owner(target) is None)
         return outcome.won
+
+    def _await_acks(self, index: int) -> Flow:
+        """Wait until every live peer acknowledged broadcast ``index`` (this claim) and all it
+        said before is known (docs/ormstc.md, "Claims under message loss")."""
+        know = self.know
+        if not know.acked_by_all(index):
+            self.ack_waits += 1
+            while not know.acked_by_all(index):
+                know.awaiting, know.changed = True, False
+                yield (_WAKE, self.now + self.config.claim_wait)
+            know.awaiting = False
+        return None
 
     def _grow(self, cell: Cell, side: int) -> None:
         dr, dc = DELTA[side]

@@ -48,6 +48,10 @@ class MachineConfig:
     watch_interval: float = 10.0
     bump_backoff: float = 3.0
     announce_connections: bool = False  # broadcast ConnectionMsg (for monitors only)
+    # decide a claim only once every live peer has acknowledged it (PeerAck), and let a
+    # peer's later claim, edge or completion settle its earlier claims (needs in-order
+    # delivery per sender: agent/ormstc/wire.py over planner/ormstc/streams.py)
+    await_acks: bool = False
     seed: int = 0
 
 
@@ -126,7 +130,17 @@ class PeerDied:
     robot: int
 
 
-Event = Tick | SenseResult | MoveResult | AliveResult | PeerMessage | PeerDied
+@dataclass(frozen=True, slots=True)
+class PeerAck:
+    """``robot`` had taken this machine's first ``upto`` broadcasts, in order, when it said
+    so, and every message it said before that has been delivered (``upto`` = inf: it will
+    say nothing more that matters: dead, gone, or not taking part)."""
+
+    robot: int
+    upto: float
+
+
+Event = Tick | SenseResult | MoveResult | AliveResult | PeerMessage | PeerDied | PeerAck
 
 
 # ---- messages (robot -> robots) ----
