@@ -51,6 +51,7 @@ from planner.maps import resolve_world
 from planner.types import Plan
 
 _log = logging.getLogger("mstc.agent")
+PULL_ROBOTS = 25
 STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress,
                ReplanReport)
 
@@ -69,6 +70,7 @@ class OfflineAgent(BodyAgent):
         self.plan: Plan | None = None
         self.runner: OfflineRunner | None = None
         self.board: ReplanBoard | None = None
+        self._pulled = -float("inf")  # self.now() of the last pull while gathering
 
     # --- plumbing -------------------------------------------------------------------------
 
@@ -168,7 +170,14 @@ class OfflineAgent(BodyAgent):
         return self.peers.dead
 
     async def _wait_news(self) -> None:
-        await self.refresh()
+        # Pull what may have been lost at most once per announce period, and in a big fleet
+        # once per k / PULL_ROBOTS periods: news wakes this wait many times a second, and every
+        # pull asks every robot for its state (60 robots pulling on every status heard never
+        # agreed within 100 s); statuses and deaths are re-announced meanwhile anyway.
+        every = self.config.announce_period * max(1.0, self.config.k / PULL_ROBOTS)
+        if self.now() - self._pulled >= every:
+            self._pulled = self.now()
+            await self.refresh()
         await self.peers.wait_news(self.config.announce_period)
 
     def _gathering(self) -> None:
