@@ -35,7 +35,7 @@ from deploy.settings import (
     MissionSetup,
     UpSettings,
     check_kills,
-    liveness,
+    fleet_timing,
     parse_kill,
     stall_timeout,
 )
@@ -134,7 +134,8 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
         from deploy.robotics import require_extra
 
         require_extra()
-    lease_ms, dead_after = liveness(args.robots, args.lease_ms, args.dead_after, cores)
+    timing = fleet_timing(args.robots, cores, lease_ms=args.lease_ms,
+                          dead_after=args.dead_after, start_timeout=args.start_timeout)
     mission = args.mission or unique_mission()
     if args.recovery != "takeover" and algorithm(args.algo).family is not Family.OFFLINE:
         raise UsageError(f"--recovery {args.recovery} needs an offline algorithm, not "
@@ -144,9 +145,12 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
         algo=args.algo, tree=args.tree, recovery=args.recovery, seed=args.seed,
         time_scale=args.time_scale, kills=kills, mission=mission,
         run_dir=Path(args.run_dir or default_run_dir(mission)),
-        listen=args.listen, connect=args.connect, lease_ms=lease_ms, dead_after=dead_after,
+        listen=args.listen, connect=args.connect, lease_ms=timing.lease_ms,
+        dead_after=timing.dead_after,
         stall_timeout=stall_timeout(args.time_scale, args.stall_timeout),
-        start_timeout=args.start_timeout or 30.0 + args.robots, linger=args.linger,
+        start_timeout=timing.start_timeout, linger=args.linger,
+        timing_args=tuple(timing.agent_args()), booting=timing.booting,
+        agent_nice=timing.agent_nice,
         agent_args=tuple(args.agent_arg), simhw_args=tuple(args.simhw_arg), plain=args.plain,
         record=args.record, record_mcap=args.record_mcap)
 
