@@ -80,12 +80,16 @@ class UpProcess:
         raise RuntimeError(f"no line with {text!r} from mstc up:\n{tail}")
 
     def fleet(self) -> FleetInfo:
-        deadline = time.monotonic() + 120
-        while not (self.run_dir / "fleet.json").exists():
+        """fleet.json once it lists every agent (mstc up rewrites it as each one starts)."""
+        deadline = time.monotonic() + 600
+        while True:
+            if (self.run_dir / "fleet.json").exists():
+                info = RunDir(self.run_dir).read_fleet()
+                if sum(p.role == "agent" for p in info.processes) == info.robots:
+                    return info
             if time.monotonic() > deadline or self.proc.poll() is not None:
-                raise RuntimeError("mstc up did not write fleet.json")
+                raise RuntimeError("mstc up did not write a complete fleet.json")
             time.sleep(0.05)
-        return RunDir(self.run_dir).read_fleet()
 
     def stop(self) -> int:
         if self.proc.poll() is None:
@@ -167,7 +171,10 @@ def bench_latency(args: argparse.Namespace, root: Path) -> None:
     tokens: list[float] = []
     false_total = 0
     for fleet in range(args.fleets):
-        up = UpProcess(root / f"latency-{fleet}", "-n", str(args.robots), "--world", "office",
+        # --insecure: this bench's own session listens to the fleet without credentials
+        # (a secured router would never admit it, and the bench would wait forever)
+        up = UpProcess(root / f"latency-{fleet}", "--insecure", "-n", str(args.robots),
+                       "--world", "office",
                        "--time-scale", "1", *_lease(args),
                        "--stall-timeout", "600", "--seed", str(fleet),
                        *[f"--agent-arg={a}" for a in args.agent_arg])

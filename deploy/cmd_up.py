@@ -91,21 +91,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="mission name (default: a unique fleet-<hex> per run)")
     parser.add_argument("--lease-ms", type=int, default=None,
                         help=f"Zenoh transport lease of every process (default "
-                             f"{DEFAULT_LEASE_MS}, {CROWDED_LEASE_MS} with more than "
-                             f"{CROWDED_AGENTS_PER_CORE} agents per CPU core)")
+                             f"{DEFAULT_LEASE_MS}; with more than {CROWDED_AGENTS_PER_CORE} "
+                             f"agents per CPU core at least {CROWDED_LEASE_MS}, growing with "
+                             f"the fleet: docs/operations.md, 'Fleet scale')")
     parser.add_argument("--stall-timeout", type=positive, default=None, metavar="S",
                         help=f"fail if coverage does not grow for S wall seconds (default "
                              f"{DEFAULT_STALL_S:g} s plus the wall time of {STALL_MOVES} moves)")
     parser.add_argument("--start-timeout", type=positive, default=None, metavar="S",
                         help="fail if the agents are not all up after S wall seconds "
-                             "(default 30 + 1 per robot)")
+                             "(default 30 + 1 per robot; crowded fleets: their paced "
+                             "start-up's)")
     parser.add_argument("--linger", type=positive, default=3.0, metavar="S",
                         help="after full coverage, wait up to S s for agents to report "
                              "completion (default %(default)s)")
     parser.add_argument("--dead-after", type=positive, default=None, metavar="S",
                         help=f"agents declare a robot dead after S s without its heartbeat "
-                             f"(default {DEFAULT_DEAD_AFTER_S:g}, {CROWDED_DEAD_AFTER_S:g} with "
-                             f"more than {CROWDED_AGENTS_PER_CORE} agents per CPU core)")
+                             f"(default {DEFAULT_DEAD_AFTER_S:g}; with more than "
+                             f"{CROWDED_AGENTS_PER_CORE} agents per CPU core at least "
+                             f"{CROWDED_DEAD_AFTER_S:g}, growing with the fleet)")
     parser.add_argument("--agent-arg", action="append", default=[], metavar="ARG",
                         help="extra argument for every agent, e.g. --agent-arg=--dead-after=2")
     parser.add_argument("--simhw-arg", action="append", default=[], metavar="ARG",

@@ -125,7 +125,9 @@ class Launcher:
                 str(self.settings.dead_after), *self._recovery(), *self._connection(),
                 *self.settings.timing_args, *self.settings.agent_args),
                 self.settings.agent_nice), robot))
-            self.write_fleet()
+            if self.settings.booting:
+                self.write_fleet()  # a paced start lasts: mstc down must see who runs
+        self.write_fleet()
         self.view.event(f"fleet up: mission {self.mission}, {s.k} agents, world {s.world}, "
                         f"algo {s.algo}, run dir {self.run_dir.path}")
 

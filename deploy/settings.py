@@ -60,8 +60,10 @@ STARVED_S_PER_AGENT = 1.0
 # on 2 cores, lease 5 s, lost most robots to token deletions).
 LEASE_MS_PER_AGENT = 400
 # An idle agent's liveness service wakes every min(heartbeat, grace) / 2: 20 times a second
-# at the agents' 0.1 s grace, 4 at this one (a token deletion is confirmed 0.4 s later).
-CROWDED_TOKEN_GRACE_S = 0.5
+# at the agents' 0.1 s grace, 1 to 5 at this one; and a starved agent whose own link flaps
+# (every token deleted at once, locally) has this long to notice before it declares the
+# fleet dead (100 agents, grace 0.5 s: one agent fenced all the others).
+CROWDED_TOKEN_GRACE_S = 2.0
 BOOTING_PER_CORE = 4
 AGENT_NICE = 10
 BOOT_CPU_S = 1.0
@@ -286,8 +288,10 @@ def fleet_timing(robots: int, cores: int | None = None, *, lease_ms: int | None 
     # The last agent starts about robots x BOOT_CPU_S / cores after the first on an idle
     # host; the gather waits for it BOOT_SLACK times that (a shared, loaded host: 100 agents
     # on 2 cores took 131 s to start), the agents' other waits and the launcher's start-up
-    # timeout the same plus their usual margin. They only bite when a robot never comes.
-    boot = round(DEFAULT_BOOT_TIMEOUT + BOOT_SLACK * robots * BOOT_CPU_S / n)
+    # timeout that plus the span (the first agent waits for the last one's boot timeout) and
+    # their usual margin. They only bite when a robot never comes.
+    span = BOOT_SLACK * robots * BOOT_CPU_S / n
+    boot = round(DEFAULT_BOOT_TIMEOUT + span)
     return FleetTiming(
         lease_ms=(max(CROWDED_LEASE_MS, int(round(LEASE_MS_PER_AGENT * robots / n, -3)))
                   if lease_ms is None else lease_ms),
@@ -296,8 +300,9 @@ def fleet_timing(robots: int, cores: int | None = None, *, lease_ms: int | None 
                     if dead_after is None else dead_after),
         heartbeat_period=heartbeat, announce_period=announce, token_grace=CROWDED_TOKEN_GRACE_S,
         boot_timeout=boot,
-        agent_start_timeout=boot + DEFAULT_START_TIMEOUT,
-        start_timeout=start_timeout or boot + DEFAULT_START_TIMEOUT + 10.0,
+        # the first agent's own gather ends once the last one's boot timeout has passed
+        agent_start_timeout=round(boot + span) + DEFAULT_START_TIMEOUT,
+        start_timeout=start_timeout or round(boot + span) + DEFAULT_START_TIMEOUT + 10.0,
         booting=BOOTING_PER_CORE * n, agent_nice=AGENT_NICE)
 
 
