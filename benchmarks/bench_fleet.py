@@ -34,6 +34,7 @@ from bus import keys
 from bus.bridge import Bus
 from bus.config import ConnectionSettings
 from bus.messages import DeathNotice, RobotStatus
+from deploy.errors import FleetError
 from deploy.fleet import FleetInfo, RunDir
 
 MAIN = "import sys; from deploy.cli import main; sys.exit(main())"
@@ -79,12 +80,16 @@ class UpProcess:
         raise RuntimeError(f"no line with {text!r} from mstc up:\n{tail}")
 
     def fleet(self) -> FleetInfo:
-        deadline = time.monotonic() + 120
-        while not (self.run_dir / "fleet.json").exists():
+        """fleet.json once it lists every agent (mstc up rewrites it as each one starts)."""
+        deadline = time.monotonic() + 600
+        while True:
+            if (self.run_dir / "fleet.json").exists():
+                info = RunDir(self.run_dir).read_fleet()
+                if sum(p.role == "agent" for p in info.processes) == info.robots:
+                    return info
             if time.monotonic() > deadline or self.proc.poll() is not None:
-                raise RuntimeError("mstc up did not write fleet.json")
+                raise RuntimeError("mstc up did not write a complete fleet.json")
             time.sleep(0.05)
-        return RunDir(self.run_dir).read_fleet()
 
     def stop(self) -> int:
         if self.proc.poll() is None:
@@ -166,7 +171,10 @@ def bench_latency(args: argparse.Namespace, root: Path) -> None:
     tokens: list[float] = []
     false_total = 0
     for fleet in range(args.fleets):
-        up = UpProcess(root / f"latency-{fleet}", "-n", str(args.robots), "--world", "office",
+        # --insecure: this bench's own session listens to the fleet without credentials
+        # (a secured router would never admit it, and the bench would wait forever)
+        up = UpProcess(root / f"latency-{fleet}", "--insecure", "-n", str(args.robots),
+                       "--world", "office",
                        "--time-scale", "1", *_lease(args),
                        "--stall-timeout", "600", "--seed", str(fleet),
                        *[f"--agent-arg={a}" for a in args.agent_arg])
@@ -215,21 +223,78 @@ def bench_startup(args: argparse.Namespace, root: Path) -> None:
 
 # --- the big mission ------------------------------------------------------------------------
 
+class ProcessSampler:
+    """Samples every fleet process's CPU time and peak resident memory from /proc once a
+    second (in a thread), so a process's last sample is its figure even after it exits."""
+
+    def __init__(self, run_dir: Path) -> None:
+        self.run_dir = run_dir
+        self.cpu: dict[str, tuple[str, float]] = {}  # name -> (role, CPU seconds)
+        self.peak: dict[str, tuple[str, float]] = {}  # name -> (role, peak RSS MB)
+        self.done = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        tick = os.sysconf("SC_CLK_TCK")
+        while not self.done.wait(1.0):
+            try:
+                info = RunDir(self.run_dir).read_fleet()
+            except FleetError:
+                continue
+            for proc in info.processes:
+                try:
+                    stat = Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+                    status = Path(f"/proc/{proc.pid}/status").read_text()
+                except OSError:
+                    continue
+                if stat[0] == "Z":
+                    continue
+                self.cpu[proc.name] = (proc.role, (int(stat[11]) + int(stat[12])) / tick)
+                for line in status.splitlines():
+                    if line.startswith("VmHWM:"):
+                        self.peak[proc.name] = (proc.role, int(line.split()[1]) / 1024)
+
+    def stop(self) -> None:
+        self.done.set()
+        self._thread.join(5)
+
+    def report(self) -> list[str]:
+        lines = []
+        for what, table, unit in (("CPU", self.cpu, "s"), ("peak RSS", self.peak, "MB")):
+            by_role: dict[str, list[float]] = {}
+            for role, value in table.values():
+                by_role.setdefault(role, []).append(value)
+            for role, values in sorted(by_role.items()):
+                lines.append(f"{what} {role:8s}: median {statistics.median(values):.1f} {unit}, "
+                             f"max {max(values):.1f} {unit}, total {sum(values):.1f} {unit} "
+                             f"({len(values)} processes)")
+        return lines
+
+
 def bench_big(args: argparse.Namespace, root: Path) -> None:
     run_dir = root / "big"
     up = UpProcess(run_dir, "-n", str(args.robots), "--world", args.world, "--algo", "opt",
                    "--time-scale", str(args.time_scale), "--stall-timeout", "120",
-                   "--start-timeout", "300", *_lease(args),
+                   "--start-timeout", "600", *_lease(args),
                    *[f"--agent-arg={a}" for a in args.agent_arg])
+    sampler = ProcessSampler(run_dir)
     code = up.proc.wait(1800)
     up.stop()
+    sampler.stop()
+    (root / "up.txt").write_text("".join(f"{at - up.t0:7.2f} {line}\n" for at, line in up.lines))
     summary = json.loads((run_dir / "summary.json").read_text())
     print("\n".join(line for _, line in up.lines[-8:]))
+    started = next((at for at, line in up.lines if "mission started" in line), None)
     print(f"{args.robots} robots on {args.world} at time scale {args.time_scale:g}: exit {code}, "
-          f"wall {time.monotonic() - up.t0:.1f} s, coverage {summary['coverage']:.1f} %, "
+          f"wall {time.monotonic() - up.t0:.1f} s, start-up (mstc up start -> all announced) "
+          f"{'never' if started is None else f'{started - up.t0:.1f} s'}, coverage "
+          f"{summary['coverage']:.1f} %, robots lost {len(summary['robots_lost'])}, "
           f"executed makespan {summary['makespan_moves']} / planned "
           f"{summary['planned_makespan']} = "
           f"{summary['makespan_moves'] / summary['planned_makespan']:.3f}")
+    print("\n".join(sampler.report()))
+    print(f"load average after the run: {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 
 def main() -> None:
@@ -245,16 +310,19 @@ def main() -> None:
     parser.add_argument("--lease-ms", type=int, default=None,
                         help="transport lease of every process (default: mstc up's)")
     parser.add_argument("--time-scale", type=float, default=0.0)
+    parser.add_argument("--keep", type=Path, default=None, metavar="DIR",
+                        help="keep the run directories (and mstc up's output) under DIR")
     parser.add_argument("--agent-arg", action="append", default=[],
                         help="extra agent option, e.g. --agent-arg=--dead-after=0.5")
     args = parser.parse_args()
     defaults = {"latency": 6, "startup": 10, "big": 30}
     with tempfile.TemporaryDirectory(prefix="bench_fleet_") as tmp:
+        root = Path(tmp) if args.keep is None else args.keep
         for what in (("latency", "startup", "big") if args.what == "all" else (args.what,)):
             sub = argparse.Namespace(**vars(args))
             sub.robots = args.robots or defaults[what]
             {"latency": bench_latency, "startup": bench_startup, "big": bench_big}[what](
-                sub, Path(tmp))
+                sub, root)
 
 
 if __name__ == "__main__":

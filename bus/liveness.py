@@ -239,13 +239,17 @@ class LivelinessService:
     def __init__(self, bus: Bus, robot: int, incarnation: int, *,
                  heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
                  timeout: float = DEFAULT_TIMEOUT,
+                 token_grace: float = DEFAULT_TOKEN_GRACE,
                  info: Callable[[], HeartbeatInfo] = HeartbeatInfo,
                  on_death: Callable[[DeathNotice], None] | None = None,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.bus = bus
         self.robot = robot
         self.incarnation = incarnation
-        self.detector = FailureDetector(timeout=timeout, detector=robot)
+        # The service ticks every min(heartbeat period, token grace) / 2: a longer grace
+        # (crowded fleets, deploy.settings.fleet_timing) makes an idle agent wake less often.
+        self.detector = FailureDetector(timeout=timeout, token_grace=token_grace,
+                                        detector=robot)
         self.heartbeats = HeartbeatPublisher(bus, robot, incarnation,
                                              period=heartbeat_period, info=info)
         self.fenced = asyncio.Event()

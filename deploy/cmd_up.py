@@ -37,7 +37,7 @@ from deploy.settings import (
     MissionSetup,
     UpSettings,
     check_kills,
-    liveness,
+    fleet_timing,
     parse_kill,
     stall_timeout,
 )
@@ -93,21 +93,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="mission name (default: a unique fleet-<hex> per run)")
     parser.add_argument("--lease-ms", type=int, default=None,
                         help=f"Zenoh transport lease of every process (default "
-                             f"{DEFAULT_LEASE_MS}, {CROWDED_LEASE_MS} with more than "
-                             f"{CROWDED_AGENTS_PER_CORE} agents per CPU core)")
+                             f"{DEFAULT_LEASE_MS}; with more than {CROWDED_AGENTS_PER_CORE} "
+                             f"agents per CPU core at least {CROWDED_LEASE_MS}, growing with "
+                             f"the fleet: docs/operations.md, 'Fleet scale')")
     parser.add_argument("--stall-timeout", type=positive, default=None, metavar="S",
                         help=f"fail if coverage does not grow for S wall seconds (default "
                              f"{DEFAULT_STALL_S:g} s plus the wall time of {STALL_MOVES} moves)")
     parser.add_argument("--start-timeout", type=positive, default=None, metavar="S",
                         help="fail if the agents are not all up after S wall seconds "
-                             "(default 30 + 1 per robot)")
+                             "(default 30 + 1 per robot; crowded fleets: their paced "
+                             "start-up's)")
     parser.add_argument("--linger", type=positive, default=3.0, metavar="S",
                         help="after full coverage, wait up to S s for agents to report "
                              "completion (default %(default)s)")
     parser.add_argument("--dead-after", type=positive, default=None, metavar="S",
                         help=f"agents declare a robot dead after S s without its heartbeat "
-                             f"(default {DEFAULT_DEAD_AFTER_S:g}, {CROWDED_DEAD_AFTER_S:g} with "
-                             f"more than {CROWDED_AGENTS_PER_CORE} agents per CPU core)")
+                             f"(default {DEFAULT_DEAD_AFTER_S:g}; with more than "
+                             f"{CROWDED_AGENTS_PER_CORE} agents per CPU core at least "
+                             f"{CROWDED_DEAD_AFTER_S:g}, growing with the fleet)")
     parser.add_argument("--agent-arg", action="append", default=[], metavar="ARG",
                         help="extra argument for every agent, e.g. --agent-arg=--dead-after=2")
     parser.add_argument("--simhw-arg", action="append", default=[], metavar="ARG",
@@ -136,7 +139,8 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
         from deploy.robotics import require_extra
 
         require_extra()
-    lease_ms, dead_after = liveness(args.robots, args.lease_ms, args.dead_after, cores)
+    timing = fleet_timing(args.robots, cores, lease_ms=args.lease_ms,
+                          dead_after=args.dead_after, start_timeout=args.start_timeout)
     mission = args.mission or unique_mission()
     if args.recovery is not None and algorithm(args.algo).family is not Family.OFFLINE:
         raise UsageError(f"--recovery {args.recovery} needs an offline algorithm, not "
@@ -147,9 +151,12 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
         seed=args.seed,
         time_scale=args.time_scale, kills=kills, mission=mission,
         run_dir=Path(args.run_dir or default_run_dir(mission)),
-        listen=args.listen, connect=args.connect, lease_ms=lease_ms, dead_after=dead_after,
+        listen=args.listen, connect=args.connect, lease_ms=timing.lease_ms,
+        dead_after=timing.dead_after,
         stall_timeout=stall_timeout(args.time_scale, args.stall_timeout),
-        start_timeout=args.start_timeout or 30.0 + args.robots, linger=args.linger,
+        start_timeout=timing.start_timeout, linger=args.linger,
+        timing_args=tuple(timing.agent_args()), booting=timing.booting,
+        agent_nice=timing.agent_nice,
         agent_args=tuple(args.agent_arg), simhw_args=tuple(args.simhw_arg), plain=args.plain,
         record=args.record, record_mcap=args.record_mcap)
 

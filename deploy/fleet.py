@@ -20,6 +20,7 @@ import asyncio
 import json
 import os
 import secrets
+import shutil
 import signal
 import socket
 import subprocess
@@ -257,6 +258,13 @@ class Child:
 
     def tail(self, lines: int = 15) -> str:
         return log_tail(self.log, lines)
+
+
+def niced(argv: list[str], niceness: int) -> list[str]:
+    """``argv`` run at a lower CPU priority (``nice -n``; the pid stays the command's, as
+    nice execs it), or unchanged for niceness 0 or where there is no nice command."""
+    nice = shutil.which("nice") if niceness > 0 else None
+    return argv if nice is None else [nice, "-n", str(niceness), *argv]
 
 
 def mstc_argv(command: str, *args: str) -> list[str]:

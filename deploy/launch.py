@@ -31,7 +31,7 @@ from bus.messages import (
 )
 from bus.router import READY_MARK as ROUTER_READY
 from deploy.errors import FleetError
-from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
+from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv, niced
 from deploy.progress import ProgressView, make_progress
 from deploy.security import FleetSecurity
 from deploy.settings import MissionSetup, UpSettings
@@ -42,6 +42,8 @@ from planner.offline.rebalance import DEFAULT_RECOVERY
 SIMHW_READY = "simhw ready"
 SUB_BUFFER = 65536  # messages of every kind, as a monitor's feed (deploy.monitor.live)
 POLL_S = 0.5
+PACE_TICK_S = 0.02
+PACE_PATIENCE_S = 15.0
 TICK_S = 0.1
 # Agent exit codes (agent/main.py): 0 done or left, 4 fenced; anything else is a failure.
 AGENT_DONE, AGENT_FENCED = 0, 4
@@ -115,14 +117,38 @@ class Launcher:
         if self.stop.is_set():
             return
         for robot in range(s.k):
-            self.agents.append(self._spawn(f"agent-{robot}", "agent", mstc_argv(
+            await self._pace()
+            if self.stop.is_set():
+                return
+            self.agents.append(self._spawn(f"agent-{robot}", "agent", niced(mstc_argv(
                 "agent", "--id", str(robot), "--algo", s.algo, *world, "--tree", s.tree,
                 "--seed", str(s.seed), "--robots", str(s.k), "--dead-after",
                 str(self.settings.dead_after), *self._recovery(), *self._connection(),
-                *self.settings.agent_args), robot))
+                *self.settings.timing_args, *self.settings.agent_args),
+                self.settings.agent_nice), robot))
+            if self.settings.booting:
+                self.write_fleet()  # a paced start lasts: mstc down must see who runs
         self.write_fleet()
         self.view.event(f"fleet up: mission {self.mission}, {s.k} agents, world {s.world}, "
                         f"algo {s.algo}, run dir {self.run_dir.path}")
+
+    def _booting(self) -> int:
+        """Agents started that have neither been heard nor exited."""
+        return sum(1 for c in self.agents
+                   if c.robot not in self.tracker.heard and c.returncode is None)
+
+    async def _pace(self) -> None:
+        """Before the next agent starts, while ``settings.booting`` agents are starting (not
+        heard yet): wait until one is heard or exits (a paced start-up; 0: no pacing). Never
+        longer than PACE_PATIENCE_S per agent: a robot that never announces itself is the
+        gather's business (it goes on without it), not a reason to hold the others back."""
+        window = self.settings.booting
+        if window <= 0:
+            return
+        deadline = time.monotonic() + PACE_PATIENCE_S
+        while (self._booting() >= window and time.monotonic() < deadline
+               and not self.stop.is_set()):
+            await asyncio.sleep(PACE_TICK_S)  # statuses are heard on this loop meanwhile
 
     def _recovery(self) -> list[str]:
         """--recovery for the agents, only when not the default (ORMSTC agents have none)."""

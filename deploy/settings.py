@@ -11,6 +11,12 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from agent.core.config import (
+    DEFAULT_ANNOUNCE_PERIOD,
+    DEFAULT_BOOT_TIMEOUT,
+    DEFAULT_HEARTBEAT_PERIOD,
+    DEFAULT_START_TIMEOUT,
+)
 from bus.config import DEFAULT_LEASE_MS
 from deploy.errors import UsageError
 from deploy.monitor.coverage import reachable_sub_cells
@@ -39,6 +45,30 @@ DEFAULT_DEAD_AFTER_S = 3.0
 CROWDED_AGENTS_PER_CORE = 6
 CROWDED_LEASE_MS = 5000
 CROWDED_DEAD_AFTER_S = 5.0
+# Crowded fleets (fleet_timing): every agent receives robots / period heartbeats and statuses
+# per second, the fleet robots^2 / period. The periods keep these deliveries within a budget
+# per core (30 robots on 2 cores keep the agents' own 0.2 s and 0.5 s), the heartbeat timeout
+# HEARTBEATS_PER_TIMEOUT periods; at most BOOTING_PER_CORE agents per core start at a time;
+# BOOT_CPU_S is the CPU an agent spends before it is heard (imports, session, pose).
+HEARTBEAT_BUDGET = 2500.0  # heartbeat deliveries per second per core
+ANNOUNCE_BUDGET = 1000.0  # re-announced statuses delivered per second per core
+MAX_ANNOUNCE_S = 5.0
+HEARTBEATS_PER_TIMEOUT = 4
+# A starved router or agent delays every heartbeat behind it: the heartbeat timeout is also
+# at least this much per agent per core (60 agents on 2 cores: 47 fenced at 5 s, 56 at 9 s).
+STARVED_S_PER_AGENT = 1.0
+# ... and so does every Zenoh lease (a starved process misses its keep-alives: 100 agents
+# on 2 cores, lease 5 s, lost most robots to token deletions).
+LEASE_MS_PER_AGENT = 400
+# An idle agent's liveness service wakes every min(heartbeat, grace) / 2: 20 times a second
+# at the agents' 0.1 s grace, 1 to 5 at this one; and a starved agent whose own link flaps
+# (every token deleted at once, locally) has this long to notice before it declares the
+# fleet dead (100 agents, grace 0.5 s: one agent fenced all the others).
+CROWDED_TOKEN_GRACE_S = 2.0
+BOOTING_PER_CORE = 4
+AGENT_NICE = 10
+BOOT_CPU_S = 1.0
+BOOT_SLACK = 4
 # A taker may walk this many already-covered sub-cells to reach a dead robot's section
 # without covering anything new; the default stall timeout allows for it at any time scale.
 STALL_MOVES = 100
@@ -163,6 +193,9 @@ class UpSettings:
     stall_timeout: float = DEFAULT_STALL_S
     start_timeout: float = 30.0
     linger: float = 3.0
+    timing_args: tuple[str, ...] = ()  # FleetTiming.agent_args(), before agent_args
+    booting: int = 0  # FleetTiming.booting: 0 starts every agent at once
+    agent_nice: int = 0  # FleetTiming.agent_nice
     agent_args: tuple[str, ...] = ()
     simhw_args: tuple[str, ...] = ()
     plain: bool = False
@@ -186,13 +219,97 @@ def stall_timeout(time_scale: float, given: float | None = None) -> float:
 
 def liveness(robots: int, lease_ms: int | None = None, dead_after: float | None = None,
              cores: int | None = None) -> tuple[int, float]:
-    """(lease ms, heartbeat timeout): the given ones, else defaults by agents per CPU core."""
-    crowded = robots > CROWDED_AGENTS_PER_CORE * (cores or os.cpu_count() or 1)
-    if lease_ms is None:
-        lease_ms = CROWDED_LEASE_MS if crowded else DEFAULT_LEASE_MS
-    if dead_after is None:
-        dead_after = CROWDED_DEAD_AFTER_S if crowded else DEFAULT_DEAD_AFTER_S
-    return lease_ms, dead_after
+    """(lease ms, heartbeat timeout): the given ones, else defaults by fleet size and cores."""
+    timing = fleet_timing(robots, cores, lease_ms=lease_ms, dead_after=dead_after)
+    return timing.lease_ms, timing.dead_after
+
+
+def crowded(robots: int, cores: int | None = None) -> bool:
+    """More agents than CROWDED_AGENTS_PER_CORE per CPU core (``cores``: os.cpu_count())."""
+    return robots > CROWDED_AGENTS_PER_CORE * _cores(cores)
+
+
+def _cores(cores: int | None) -> int:
+    return max(1, cores or os.cpu_count() or 1)
+
+
+@dataclass(frozen=True)
+class FleetTiming:
+    """The timers and start-up pace ``mstc up`` gives a fleet of its size on this many cores.
+
+    None for an agent option means "the agents' own default" (not passed): small fleets run
+    exactly as an agent started by hand would, and so detect deaths as fast."""
+
+    lease_ms: int
+    dead_after: float
+    heartbeat_period: float | None = None
+    announce_period: float | None = None
+    token_grace: float | None = None
+    boot_timeout: float | None = None  # agents' --boot-timeout
+    agent_start_timeout: float | None = None  # agents' --start-timeout
+    start_timeout: float = 30.0  # the launcher's: every agent announced by then
+    booting: int = 0  # agents started but not heard at most at once (0: start all at once)
+    agent_nice: int = 0  # the agents' niceness: the router and simhw, which every agent
+    # waits on, keep their share of the CPU
+
+    def agent_args(self) -> list[str]:
+        """The agent options these timers set (before the user's --agent-arg, which win)."""
+        given = (("--heartbeat-period", self.heartbeat_period),
+                 ("--announce-period", self.announce_period),
+                 ("--token-grace", self.token_grace),
+                 ("--boot-timeout", self.boot_timeout),
+                 ("--start-timeout", self.agent_start_timeout))
+        return [arg for flag, value in given if value is not None
+                for arg in (flag, f"{value:g}")]
+
+
+def fleet_timing(robots: int, cores: int | None = None, *, lease_ms: int | None = None,
+                 dead_after: float | None = None, start_timeout: float | None = None
+                 ) -> FleetTiming:
+    """The timers of a fleet of ``robots`` agents on ``cores`` CPU cores (a pure function of
+    the two; the given values win). docs/operations.md, "Fleet scale", has the measurements.
+
+    Up to CROWDED_AGENTS_PER_CORE agents per core: the defaults (lease 1 s, heartbeat timeout
+    3 s, the agents' own periods, every agent started at once). Beyond, every agent hears
+    every other's heartbeats and statuses, so the deliveries grow with the square of the
+    fleet while the CPU does not: the periods grow so that they stay within a budget per core
+    (the heartbeat timeout stays HEARTBEATS_PER_TIMEOUT periods), the agents start at most
+    BOOTING_PER_CORE per core at a time (each waits to be heard before the next starts), and
+    the gather and start-up timeouts cover the paced start of the whole fleet."""
+    n = _cores(cores)
+    if not crowded(robots, n):
+        return FleetTiming(
+            lease_ms=DEFAULT_LEASE_MS if lease_ms is None else lease_ms,
+            dead_after=DEFAULT_DEAD_AFTER_S if dead_after is None else dead_after,
+            start_timeout=start_timeout or 30.0 + robots)
+    squared = robots * robots
+    heartbeat = _centi(max(DEFAULT_HEARTBEAT_PERIOD, squared / (HEARTBEAT_BUDGET * n)))
+    announce = _centi(min(MAX_ANNOUNCE_S, max(DEFAULT_ANNOUNCE_PERIOD,
+                                              squared / (ANNOUNCE_BUDGET * n))))
+    # The last agent starts about robots x BOOT_CPU_S / cores after the first on an idle
+    # host; the gather waits for it BOOT_SLACK times that (a shared, loaded host: 100 agents
+    # on 2 cores took 131 s to start), the agents' other waits and the launcher's start-up
+    # timeout that plus the span (the first agent waits for the last one's boot timeout) and
+    # their usual margin. They only bite when a robot never comes.
+    span = BOOT_SLACK * robots * BOOT_CPU_S / n
+    boot = round(DEFAULT_BOOT_TIMEOUT + span)
+    return FleetTiming(
+        lease_ms=(max(CROWDED_LEASE_MS, int(round(LEASE_MS_PER_AGENT * robots / n, -3)))
+                  if lease_ms is None else lease_ms),
+        dead_after=(max(CROWDED_DEAD_AFTER_S, HEARTBEATS_PER_TIMEOUT * heartbeat,
+                        round(STARVED_S_PER_AGENT * robots / n, 1))
+                    if dead_after is None else dead_after),
+        heartbeat_period=heartbeat, announce_period=announce, token_grace=CROWDED_TOKEN_GRACE_S,
+        boot_timeout=boot,
+        # the first agent's own gather ends once the last one's boot timeout has passed
+        agent_start_timeout=round(boot + span) + DEFAULT_START_TIMEOUT,
+        start_timeout=start_timeout or round(boot + span) + DEFAULT_START_TIMEOUT + 10.0,
+        booting=BOOTING_PER_CORE * n, agent_nice=AGENT_NICE)
+
+
+def _centi(seconds: float) -> float:
+    """``seconds`` rounded up to a hundredth (a period never shorter than its budget's)."""
+    return math.ceil(round(seconds * 100, 6)) / 100
 
 
 def check_kills(orders: tuple[KillOrder, ...], robots: int) -> tuple[KillOrder, ...]:

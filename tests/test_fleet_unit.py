@@ -150,7 +150,8 @@ def test_crowded_fleets_get_long_liveness_timers_unless_told() -> None:
         return liveness(robots, lease_ms, dead_after, cores)
 
     assert settings(12, 2) == (1000, 3.0)
-    assert settings(13, 2) == (5000, 5.0)
+    assert settings(13, 2) == (5000, 6.5)  # 1 s per agent per core (deploy.settings)
+    assert settings(100, 2) == (20000, 50.0)
     assert settings(30, 8) == (1000, 3.0)
     assert settings(30, 2, lease_ms=800, dead_after=2.0) == (800, 2.0)
 

@@ -19,6 +19,9 @@ DEFAULT_START_TIMEOUT = 30.0
 DEFAULT_BOOT_TIMEOUT = 10.0
 DEFAULT_HEARTBEAT_PERIOD = 0.2
 DEFAULT_DEAD_AFTER = 3.0
+# A vanished liveliness token is confirmed after this grace (bus.liveness), which also sets
+# how often the liveness service wakes (every min(heartbeat period, grace) / 2).
+DEFAULT_TOKEN_GRACE = 0.1
 # The tree agent re-announced every 1.0 s, the two others every 0.5 s; 0.5 is kept for all:
 # the offline and ORMSTC agents also pace their gather and refresh wake-ups with it, while
 # the tree agent only re-publishes its status with it (a few small messages more per second).
@@ -41,6 +44,7 @@ class AgentConfig:
     boot_timeout: float = DEFAULT_BOOT_TIMEOUT
     heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD
     dead_after: float = DEFAULT_DEAD_AFTER
+    token_grace: float = DEFAULT_TOKEN_GRACE
     announce_period: float = DEFAULT_ANNOUNCE_PERIOD
     hw_timeout: float = DEFAULT_HW_TIMEOUT
     linger: float = DEFAULT_LINGER
@@ -64,6 +68,10 @@ def add_life_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dead-after", type=positive, default=DEFAULT_DEAD_AFTER,
                         metavar="SECONDS",
                         help="a robot silent this long is declared dead (default %(default)s)")
+    parser.add_argument("--token-grace", type=positive, default=DEFAULT_TOKEN_GRACE,
+                        metavar="SECONDS",
+                        help="a peer's vanished liveliness token is confirmed (the peer "
+                             "declared dead) after this long (default %(default)s)")
     parser.add_argument("--announce-period", type=positive, default=DEFAULT_ANNOUNCE_PERIOD,
                         metavar="SECONDS",
                         help="re-announce state and re-query peers this often "
@@ -105,6 +113,7 @@ def config_from_args(args: argparse.Namespace) -> AgentConfig:
         seed=body.get("seed", 0), start_timeout=body.get("start_timeout", DEFAULT_START_TIMEOUT),
         boot_timeout=body.get("boot_timeout", DEFAULT_BOOT_TIMEOUT),
         heartbeat_period=args.heartbeat_period, dead_after=args.dead_after,
+        token_grace=args.token_grace,
         announce_period=args.announce_period,
         hw_timeout=body.get("hw_timeout", DEFAULT_HW_TIMEOUT),
         linger=body.get("linger", DEFAULT_LINGER))

@@ -60,6 +60,7 @@ class AgentLife(ABC):
         c = self.config
         return LivelinessService(bus, self.robot, self.incarnation,
                                  heartbeat_period=c.heartbeat_period, timeout=c.dead_after,
+                                 token_grace=c.token_grace,
                                  info=info, on_death=on_death)
 
     def _make_announcer(self, bus: Bus,

@@ -88,10 +88,14 @@ def decide(me: int, my_start: SubCell, k: int, statuses: Mapping[int, RobotStatu
                 return Agreed(committed, _absent(committed, k))
             return StandDown(committed, robot)
     known: Roster = {me: my_start}
+    merged: set[WireRoster] = set()  # most peers propose the same set: merge each one once
     for robot, status in sorted(peers.items()):
         if status.state != GATHERING:
             continue  # it stood down or ended without agreeing: not a participant
         known.setdefault(robot, (status.start[0], status.start[1]))
+        if status.roster in merged:
+            continue  # its members were set by an earlier peer, in this same order
+        merged.add(status.roster)
         for member, start in sorted(from_wire(status.roster).items()):
             if 0 <= member < k:
                 known.setdefault(member, start)
@@ -99,8 +103,12 @@ def decide(me: int, my_start: SubCell, k: int, statuses: Mapping[int, RobotStatu
                       if r not in known and r not in dead and not boot_over)
     if unsettled:
         return Waiting(None, unsettled, ())
+    # This runs on every status heard, over every peer: a roster equal on the wire to
+    # the proposal (the usual case) agrees without being rebuilt as a dict (k^2 per news).
+    wire = to_wire(known)
     disagreeing = tuple(r for r in sorted(known) if r != me and r not in dead
-                        and (r not in peers or from_wire(peers[r].roster) != known))
+                        and (r not in peers or (peers[r].roster != wire
+                                                and from_wire(peers[r].roster) != known)))
     if disagreeing:
         return Waiting(known, (), disagreeing)
     return Agreed(known, _absent(known, k))

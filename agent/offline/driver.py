@@ -52,6 +52,7 @@ from planner.maps import resolve_world
 from planner.types import Plan
 
 _log = logging.getLogger("mstc.agent")
+PULL_ROBOTS = 25
 STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress,
                ReplanReport)
 
@@ -71,6 +72,7 @@ class OfflineAgent(BodyAgent):
         self.runner: OfflineRunner | None = None
         self.board: ReplanBoard | None = None
         self.bodies: Bodies | None = None
+        self._pulled = -float("inf")  # self.now() of the last pull while gathering
 
     # --- plumbing -------------------------------------------------------------------------
 
@@ -173,7 +175,14 @@ class OfflineAgent(BodyAgent):
         return self.peers.dead
 
     async def _wait_news(self) -> None:
-        await self.refresh()
+        # Pull what may have been lost at most once per announce period, and in a big fleet
+        # once per k / PULL_ROBOTS periods: news wakes this wait many times a second, and every
+        # pull asks every robot for its state (60 robots pulling on every status heard never
+        # agreed within 100 s); statuses and deaths are re-announced meanwhile anyway.
+        every = self.config.announce_period * max(1.0, self.config.k / PULL_ROBOTS)
+        if self.now() - self._pulled >= every:
+            self._pulled = self.now()
+            await self.refresh()
         await self.peers.wait_news(self.config.announce_period)
 
     def _gathering(self) -> None:
