@@ -201,7 +201,8 @@ def covered_mask(fleet: Fleet, shape: tuple[int, int]) -> np.ndarray:
 
 
 @pytest.mark.parametrize(("algo", "tree"), [
-    ("nb", "dfs"), pytest.param("bt", "dfs", marks=pytest.mark.slow),
+    pytest.param("nb", "dfs", marks=pytest.mark.slow),
+    pytest.param("bt", "dfs", marks=pytest.mark.slow),
     pytest.param("opt", "dfs", marks=pytest.mark.slow),
     # A paper tree (Create Tree needs the starts, which each agent learns by gathering).
     pytest.param("opt", "createtree", marks=pytest.mark.slow)])

@@ -53,6 +53,7 @@ async def _query_until_found(bus: Bus, timeout: float) -> list[RobotStatus]:
     return []
 
 
+@pytest.mark.slow
 async def test_subscriber_relearns_state_after_router_restart(free_port: int) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port}"
     router = start_router_process(endpoint)

@@ -199,8 +199,8 @@ async def world_state(bus: Bus) -> WorldState:
 
 
 # Seed 3: opt, k - 1 = 3 robots killed; 16: bt, 2 killed; 21: nb, 1 killed.
-@pytest.mark.parametrize("seed", [pytest.param(3, marks=pytest.mark.slow), 16,
-                                  pytest.param(21, marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [3, 16, 21])
 async def test_offline_fleet_survives_seeded_sigkills_as_the_semantics_say(
         bus: Bus, router: str, tmp_path: Path, seed: int) -> None:
     world = write_room(tmp_path, ROOM)

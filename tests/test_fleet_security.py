@@ -70,6 +70,7 @@ def test_an_attacked_mission_completes_with_no_robot_lost(tmp_path: Path) -> Non
                 proc.communicate()
 
 
+@pytest.mark.slow
 def test_insecure_runs_make_no_credentials(tmp_path: Path) -> None:
     run_dir = tmp_path / "plain"
     done = subprocess.run(up_argv(pick_free_port(), run_dir, "--time-scale", "0",

@@ -92,6 +92,7 @@ def test_robots_coming_back_after_the_verdict_are_a_new_run() -> None:
     assert watcher.new_run
 
 
+@pytest.mark.slow
 @pytest.mark.integration
 def test_the_missions_on_a_router_are_listed_and_one_watched(router: str,
                                                              tmp_path: Path) -> None:

@@ -282,6 +282,7 @@ async def run_to_end(bus: Bus, fleet: Fleet, robots: list[int]) -> None:
     await through_router(bus, fleet.router)  # the last published tree edges
 
 
+@pytest.mark.slow
 @pytest.mark.integration
 async def test_four_robots_cover_everything_once(bus: Bus, router: str, room: Path) -> None:
     fleet = await make_fleet(bus, router, room)

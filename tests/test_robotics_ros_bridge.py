@@ -113,6 +113,7 @@ def test_the_bridge_speaks_rmw_zenoh(router: str) -> None:
                                   np.where(mission.free, 0, 100))
 
 
+@pytest.mark.slow
 def test_the_command_announces_its_node_and_stops_after_its_duration(router: str) -> None:
     proc = subprocess.Popen(mstc("ros-bridge", "--connect", router, "--mission", "ros-cli",
                                  "--domain", "9", "--duration", "4"),

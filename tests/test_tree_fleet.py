@@ -121,7 +121,7 @@ def test_agents_give_up_when_a_robot_never_reports(router: str,
 
 
 @pytest.mark.parametrize(("spec", "robots", "algo"), [
-    ("perfect:N=2,H=3", 4, "cocta"),
+    pytest.param("perfect:N=2,H=3", 4, "cocta", marks=pytest.mark.slow),
     pytest.param("general:N=2,H=4,remove=2,at=1,seed=3", 5, "ncocta", marks=pytest.mark.slow),
 ])
 def test_tree_fleet_equals_the_lockstep_run(tmp_path: Path, spec: str, robots: int,
@@ -154,6 +154,7 @@ def run_fleet(tmp_path: Path, *argv: str) -> dict[str, Any]:
     return summary
 
 
+@pytest.mark.slow
 def test_a_killed_robot_is_removed_and_the_survivors_finish(tmp_path: Path) -> None:
     spec, robots = "perfect:N=2,H=5", 6
     summary = run_fleet(tmp_path, "--tree", spec, "--robots", str(robots), "--kill", "1@5")
