@@ -193,7 +193,9 @@ def start_agent(world: Path, router: str, mission: str, robot: int, algo: str
     return subprocess.Popen(
         [sys.executable, "-m", "deploy.cli", "agent", "--id", str(robot), "--algo", algo,
          "--world", str(world), "--robots", str(len(STARTS)), "--connect", router,
-         "--mission", mission, "--start-timeout", "30", "--linger", "1"],
+         "--mission", mission, "--start-timeout", "30", "--linger", "1",
+         # the papers' takeover: its walks stay on the planned tree, which the test checks
+         "--recovery", "takeover"],
         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         text=True)
 
@@ -255,6 +257,7 @@ async def test_real_fleet_with_a_kill_report_against_ground_truth(router: str,
     assert set(death.detected_by) <= {0, 2} and death.detected_by
     assert death.since_token_lost is not None and 0 <= death.since_token_lost < 3.0
     assert len(death.taken_over_by) == 1 and death.taken_over_by[0] in (0, 2)
+    assert not death.replanned_by, death
     assert {i.name: i.status for i in report.invariants}["redundancy"] == "skipped"
     assert report.ok and report.complete
     # The agents' state replies name their tree: the monitor rebuilds it, and every walked

@@ -298,3 +298,11 @@ def test_a_dead_robots_verdict_on_a_live_one_is_not_taken() -> None:
     assert model.robots[2].dead and not model.robots[0].dead
     assert list(model.deaths) == [(2, 1)]
     assert model.invalid["death.dead_detector"] == 1
+
+
+def test_a_replan_event_names_the_dead_it_took_the_work_of() -> None:
+    from deploy.monitor.model import _dead_of_replan
+
+    assert _dead_of_replan("dead [2, 5], digest 0123456789abcdef, 3 reports") == (2, 5)
+    assert _dead_of_replan("dead [1]") == (1,)
+    assert _dead_of_replan("nothing here") == ()

@@ -10,6 +10,7 @@ model stays the same, so a monitor that joins late converges on the same picture
 
 from __future__ import annotations
 
+import re
 from collections import Counter, deque
 from typing import Any
 
@@ -67,6 +68,8 @@ class FleetModel:
         self.kinds: Counter[str] = Counter()
         self.deaths: dict[tuple[int, int], Death] = {}
         self.takeovers: list[tuple[float, int, int | None]] = []
+        # (t, robot, the dead its re-plan names) of every re-plan (offline `rebalance`)
+        self.replans: list[tuple[float, int, tuple[int, ...]]] = []
         # each robot's moves once the record that completed the coverage was applied
         self.moves_at_coverage: dict[int, int] | None = None
         self._seen_events: set[tuple[Any, ...]] = set()
@@ -177,6 +180,7 @@ class FleetModel:
             self._emit(record.t, "takeover_done", r, f"robot {r} finished robot {s}'s "
                                                      f"section{detail}")
         elif ev.kind == "replanned":
+            self.replans.append((record.t, r, _dead_of_replan(ev.detail)))
             self._emit(record.t, "replanned", r, f"robot {r} re-planned{detail}")
         elif ev.kind == "section_complete":
             self._emit(record.t, "section_complete", r, f"robot {r} covered its section"
@@ -400,3 +404,14 @@ _HANDLERS: dict[type[Any], Any] = {
     WorldState: FleetModel._world, AgentState: FleetModel._agent_state,
     TreeReport: FleetModel._tree_report,
 }
+
+
+_REPLAN_DEAD = re.compile(r"dead \[([0-9, ]*)\]")
+
+
+def _dead_of_replan(detail: str) -> tuple[int, ...]:
+    """The robots a ``replanned`` event names dead (its detail reads "dead [2, 5], ...")."""
+    found = _REPLAN_DEAD.search(detail)
+    if found is None:
+        return ()
+    return tuple(int(x) for x in found.group(1).replace(",", " ").split())

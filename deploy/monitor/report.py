@@ -57,6 +57,7 @@ class DeathFigures:
     since_last_heartbeat: float | None
     since_token_lost: float | None
     taken_over_by: tuple[int, ...]
+    replanned_by: tuple[int, ...] = ()  # survivors whose re-plan took its work (rebalance)
 
 
 @dataclass(frozen=True)
@@ -132,7 +133,8 @@ class MissionReport:
                         "detected_by": list(d.detected_by), "t": d.t,
                         "since_last_heartbeat": d.since_last_heartbeat,
                         "since_token_lost": d.since_token_lost,
-                        "taken_over_by": list(d.taken_over_by)} for d in self.deaths],
+                        "taken_over_by": list(d.taken_over_by),
+                        "replanned_by": list(d.replanned_by)} for d in self.deaths],
             "conflicts": [{"cell": list(c), "claimants": list(who), "winner": w}
                           for c, who, w in self.conflicts],
             "messages": self.messages,
@@ -212,6 +214,7 @@ def _deaths(model: FleetModel) -> tuple[DeathFigures, ...]:
     out = []
     for (robot, inc), death in sorted(model.deaths.items()):
         takers = tuple(sorted({r for _, r, dead in model.takeovers if dead == robot}))
+        replanners = tuple(sorted({r for _, r, dead in model.replans if robot in dead}))
         out.append(DeathFigures(
             robot=robot, incarnation=inc, reason=death.notice.reason,
             detected_by=death.detectors, t=death.t,
@@ -219,7 +222,7 @@ def _deaths(model: FleetModel) -> tuple[DeathFigures, ...]:
             else round(death.t - death.last_heartbeat, 6),
             since_token_lost=None if death.token_lost is None
             else round(death.t - death.token_lost, 6),
-            taken_over_by=takers))
+            taken_over_by=takers, replanned_by=replanners))
     return tuple(out)
 
 
@@ -387,7 +390,7 @@ def format_report(report: MissionReport) -> str:
         tok = "-" if d.since_token_lost is None else f"{d.since_token_lost:.3f} s"
         lines.append(f"  death: robot {d.robot} (life {d.incarnation}) by {list(d.detected_by)}"
                      f" ({d.reason}), {hb} after its last heartbeat, {tok} after its token "
-                     f"vanished; taken over by {list(d.taken_over_by) or 'nobody'}")
+                     f"vanished; {_recovered_by(d)}")
     for cell, who, winner in report.conflicts:
         lines.append(f"  conflict over cell {cell}: {list(who)} -> "
                      f"{'unsettled' if winner is None else f'robot {winner}'}")
@@ -403,3 +406,12 @@ def format_report(report: MissionReport) -> str:
     lines.append("verdict: ok (no invariant failed)" if not failed else
                  f"verdict: FAILED ({'; '.join(failed)})")
     return "\n".join(lines)
+
+
+def _recovered_by(death: DeathFigures) -> str:
+    if death.replanned_by and not death.taken_over_by:
+        return f"its work re-planned by {list(death.replanned_by)}"
+    text = f"taken over by {list(death.taken_over_by) or 'nobody'}"
+    if death.replanned_by:
+        text += f", re-planned by {list(death.replanned_by)}"
+    return text
