@@ -146,15 +146,13 @@ async def test_a_process_fault_is_survived(kind: str, tmp_path: Path) -> None:
 
 @pytest.mark.integration
 @pytest.mark.slow
-@pytest.mark.parametrize("algo", ["nb", "ormstc"])
+@pytest.mark.parametrize("algo", ["nb"])
 async def test_message_loss_duplication_delay_and_reordering_are_survived(
         algo: str, tmp_path: Path) -> None:
-    # ormstc: the verdict includes "no double work" from the recording (lost claims are
-    # repaired before a claim is decided, docs/ormstc.md "Claims under message loss"); its
-    # LookSteps are left alone as in the campaign (a lost one blinds the report, not a robot)
+    # ORMSTC under heavier loss (30 % of its messages, no double work, one owner per cell)
+    # is tests/test_ormstc_fleet.py::test_lost_claims_and_edges_cause_no_double_work, and
+    # the campaign's `loss` scenario (docs/chaos.md): a third run here cost CI 46 s.
     spec = "seed=4;*.drop=0.05;*.lose=0.05;*.dup=0.1;*.delay=0.05;*.reorder=0.1;window=0.1"
-    if algo == "ormstc":
-        spec += ";look.dup=0"
     await _judged(_trial(algo, 3, messages=spec), tmp_path)
 
 
