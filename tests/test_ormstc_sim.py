@@ -195,37 +195,3 @@ def test_two_robots_in_one_cell_is_a_placement_error() -> None:
     world = OccupancyGrid(np.ones((6, 6), dtype=bool))
     with pytest.raises(RobotPlacementError):
         simulate(world, [(0, 0), (1, 1)])
-
-
-def _same_run(a: SimResult, b: SimResult) -> None:
-    assert (a.steps, a.finished, a.paths, a.trees) == (b.steps, b.finished, b.paths, b.trees)
-    assert (a.claims, a.conflicts, a.deaths, a.done_steps) == (
-        b.claims, b.conflicts, b.deaths, b.done_steps)
-    assert a.sense_turns == b.sense_turns
-    assert (a.first_robot == b.first_robot).all() and (a.first_step == b.first_step).all()
-
-
-@settings(max_examples=20, deadline=None)
-@given(world=worlds, k=st.integers(2, 5), seed=st.integers(0, 1000), data=st.data())
-def test_instant_answers_change_nothing(world: OccupancyGrid, k: int, seed: int,
-                                        data: st.DataObject) -> None:
-    # the simulator answers sensing and liveness inside step() (``instant``); answering the
-    # Sense / IsAlive requests one round trip at a time, as an agent does, must give the
-    # same run, with failures, random delays and both sensing modes
-    from planner.ormstc.lockstep import LockstepSim
-
-    starts = random_starts(world, k, seed)
-    assume(starts)  # a world of a cell or two may have no free cell to start on
-    victims = data.draw(st.lists(st.integers(0, len(starts) - 1), max_size=len(starts) - 1,
-                                 unique=True))
-    config = SimConfig(
-        seed=seed, delay=data.draw(st.sampled_from([(1, 1), (1, 3), (2, 2)])),
-        sense_mode=data.draw(st.sampled_from(list(SenseMode))),
-        priority=data.draw(st.sampled_from(list(Priority))),
-        failures=tuple((v, data.draw(st.integers(0, 80))) for v in victims),
-        detect_delay=data.draw(st.integers(1, 4)))
-    fast = LockstepSim(world, starts, config)
-    slow = LockstepSim(world, starts, config)
-    for machine in slow.machines:
-        machine.instant = None
-    _same_run(fast.run(), slow.run())
