@@ -217,13 +217,6 @@ def stall_timeout(time_scale: float, given: float | None = None) -> float:
     return DEFAULT_STALL_S + STALL_MOVES * MOVE_SIM_S / time_scale
 
 
-def liveness(robots: int, lease_ms: int | None = None, dead_after: float | None = None,
-             cores: int | None = None) -> tuple[int, float]:
-    """(lease ms, heartbeat timeout): the given ones, else defaults by fleet size and cores."""
-    timing = fleet_timing(robots, cores, lease_ms=lease_ms, dead_after=dead_after)
-    return timing.lease_ms, timing.dead_after
-
-
 def crowded(robots: int, cores: int | None = None) -> bool:
     """More agents than CROWDED_AGENTS_PER_CORE per CPU core (``cores``: os.cpu_count())."""
     return robots > CROWDED_AGENTS_PER_CORE * _cores(cores)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import os
 import stat
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -31,6 +30,7 @@ from bus.messages.schema import ALIVE, FAMILIES
 from bus.router import start_router_process, stop_process
 from bus.security import acl, credentials
 from bus.security.roles import OBSERVER, OPERATOR, SIMHW, parse_role, robot
+from deploy.fleet import mstc_argv
 
 MISSION = "sec"
 ROOT = Path(__file__).resolve().parent.parent
@@ -396,8 +396,8 @@ def test_two_secured_routers_join_over_mtls_and_keep_every_role_to_its_keys(
 
     # Without mTLS a secured router refuses to join: the other side could not know it.
     refused = subprocess.run(
-        [*start_argv(joined), "--connect", hub, *router_tls], capture_output=True, text=True,
-        timeout=30, check=False)
+        mstc_argv("router", "--listen", joined, "--connect", hub, *router_tls),
+        capture_output=True, text=True, timeout=30, check=False)
     assert refused.returncode == 2 and "only over mTLS" in refused.stderr, refused.stderr
     assert len(refused.stderr.strip().splitlines()) == 1
 
@@ -442,6 +442,3 @@ def test_two_secured_routers_join_over_mtls_and_keep_every_role_to_its_keys(
         for proc in procs:
             stop_process(proc)
 
-
-def start_argv(listen: str) -> list[str]:
-    return [sys.executable, "-m", "deploy.cli", "router", "--listen", listen]

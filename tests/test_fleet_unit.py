@@ -45,7 +45,7 @@ from deploy.fleet import (
 )
 from deploy.monitor.coverage import reachable_sub_cells
 from deploy.progress import PlainProgress
-from deploy.settings import KillOrder, MissionSetup, liveness, parse_kill, stall_timeout
+from deploy.settings import KillOrder, MissionSetup, fleet_timing, parse_kill, stall_timeout
 from deploy.summary import MissionTracker, format_summary, summarize
 from planner.types import OccupancyGrid
 
@@ -147,7 +147,8 @@ def test_default_stall_timeout_allows_100_moves_of_wall_time() -> None:
 def test_crowded_fleets_get_long_liveness_timers_unless_told() -> None:
     def settings(robots: int, cores: int, lease_ms: int | None = None,
                  dead_after: float | None = None) -> tuple[float, float]:
-        return liveness(robots, lease_ms, dead_after, cores)
+        timing = fleet_timing(robots, cores, lease_ms=lease_ms, dead_after=dead_after)
+        return timing.lease_ms, timing.dead_after
 
     assert settings(12, 2) == (1000, 3.0)
     assert settings(13, 2) == (5000, 6.5)  # 1 s per agent per core (deploy.settings)
