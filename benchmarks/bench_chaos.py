@@ -1,6 +1,6 @@
 """The large robustness campaign for docs/chaos.md (not a test; nothing is asserted).
 
-    .venv/bin/python benchmarks/bench_chaos.py run --trials 1000 --seed 1 --out runs/chaos-big
+    .venv/bin/python benchmarks/bench_chaos.py run --trials 1000 --jobs 2 --out runs/chaos-big
     .venv/bin/python benchmarks/bench_chaos.py table runs/chaos-big/trials.jsonl
 
 ``run`` is ``mstc chaos`` over every scenario and every grid fleet algorithm (example world,
@@ -27,12 +27,16 @@ def main(argv: list[str]) -> int:
     run.add_argument("--trials", type=int, default=1000)
     run.add_argument("--seed", type=int, default=1)
     run.add_argument("--out", type=Path, default=Path("runs/chaos-big"))
+    run.add_argument("--jobs", type=int, default=2, help="trials side by side (2)")
+    run.add_argument("--first", type=int, default=0, help="first trial index (0): to go on "
+                     "with a campaign that was cut short, appending to its trials.jsonl")
     tab = sub.add_parser("table")
     tab.add_argument("jsonl", type=Path)
     args = parser.parse_args(argv)
     if args.command == "run":
-        outcomes = asyncio.run(run_campaign(Campaign(seed=args.seed), range(args.trials),
-                                            args.out, print))
+        outcomes = asyncio.run(run_campaign(
+            Campaign(seed=args.seed), range(args.first, args.trials), args.out,
+            lambda line: print(line, flush=True), jobs=args.jobs))
     else:
         outcomes = load_outcomes(args.jsonl)
     print(table(outcomes))

@@ -36,6 +36,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenarios", default=",".join(SCENARIOS),
                         help="comma-separated fault scenarios, taken in turn "
                              f"({','.join(SCENARIOS)})")
+    parser.add_argument("--jobs", type=int, default=1, metavar="J",
+                        help="trials run side by side (1); each has its own router and port, "
+                             "a host-starving trial runs alone")
     parser.add_argument("--out", type=Path, default=None, metavar="DIR",
                         help="trial directories and trials.jsonl (runs/chaos-<time>)")
 
@@ -74,13 +77,16 @@ def run(args: argparse.Namespace) -> int:
     from deploy.chaos.campaign import rerun_command, run_campaign, table
     from deploy.chaos.schedule import Campaign
 
+    if args.jobs < 1:
+        raise UsageError("--jobs: at least 1")
     campaign = _campaign(args)
     assert isinstance(campaign, Campaign)
     out = args.out or Path("runs") / time.strftime("chaos-%Y%m%d-%H%M%S")
     indices = [args.only] if args.only is not None else list(range(args.trials))
-    print(f"mstc chaos: {len(indices)} trials, seed {campaign.seed}, out {out}", flush=True)
+    print(f"mstc chaos: {len(indices)} trials, seed {campaign.seed}, {args.jobs} at a time, "
+          f"out {out}", flush=True)
     outcomes = asyncio.run(run_campaign(campaign, indices, out,
-                                        lambda line: print(line, flush=True)))
+                                        lambda line: print(line, flush=True), jobs=args.jobs))
     print(table(outcomes))
     print(f"trials: {out / 'trials.jsonl'}")
     failing = [o for o in outcomes if o.verdict != "ok"]

@@ -18,6 +18,7 @@ process failed, the run stalled, or the results differ); 2 usage or start-up err
 from __future__ import annotations
 
 import argparse
+import asyncio
 import json
 from pathlib import Path
 
@@ -103,8 +104,9 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda _text: None) if args.json else (lambda text: print(text, flush=True))
     connection = secured.observer(ConnectionSettings(
         connect=(options.endpoint or "",), mission=mission, lease_ms=options.lease_ms))
-    outcome = run_recorded(TreeFleet(options, say).run(), connection, args.record,
-                           "tree-fleet")
+    recording = None if args.record is None else asyncio.Event()
+    outcome = run_recorded(TreeFleet(options, say, recording).run(), connection, args.record,
+                           "tree-fleet", recording=recording)
     lockstep, lockstep_cuts = lockstep_run(tree, args.robots, args.algo,
                                            outcome.observed.deaths)
     summary = summarize(tree, lockstep, outcome.observed, ok=outcome.ok,

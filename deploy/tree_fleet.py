@@ -26,6 +26,7 @@ from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
 from bus.messages import MissionStatus, RadioStats, TreeReport
 from bus.router import READY_MARK as ROUTER_READY
+from deploy.errors import FleetError
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
 from deploy.security import FleetSecurity
 from deploy.settings import KillOrder
@@ -36,6 +37,7 @@ from simhw.radio import READY_MARK as RADIO_READY
 
 TICK_S = 0.1
 SETTLE_S = 2.0
+RECORDER_WAIT_S = 20.0  # as long as the router may take to say it is ready
 
 
 @dataclass(frozen=True)
@@ -75,9 +77,14 @@ def free_endpoint() -> str:
 class TreeFleet:
     """Starts, watches and stops one tree-coverage fleet."""
 
-    def __init__(self, options: TreeFleetOptions, say: Callable[[str], None]) -> None:
+    def __init__(self, options: TreeFleetOptions, say: Callable[[str], None],
+                 recording: asyncio.Event | None = None) -> None:
         self.options = options
         self.say = say
+        # Set by the launcher's recorder once it has subscribed. Tree reports have no
+        # publisher cache (the radio relays them), so a recorder that joined after the first
+        # step would miss it for good: the robots start only once it listens.
+        self.recording = recording
         self.endpoint = options.endpoint or free_endpoint()
         self.run_dir = RunDir(options.run_dir).create()
         self.supervisor = Supervisor(self.run_dir)
@@ -113,6 +120,13 @@ class TreeFleet:
             "router", "--listen", self.endpoint, "--lease-ms", str(o.lease_ms),
             "--exit-with-parent", *self.security.child_args()))
         await self.supervisor.wait_ready(self.router, ROUTER_READY, 20.0)
+        if self.recording is not None:
+            try:
+                async with asyncio.timeout(RECORDER_WAIT_S):
+                    await self.recording.wait()
+            except TimeoutError:
+                raise FleetError(f"the recorder did not connect to {self.endpoint} within "
+                                 f"{RECORDER_WAIT_S:g} s") from None
         settings = self.security.operator(ConnectionSettings(
             connect=(self.endpoint,), mission=o.mission, lease_ms=o.lease_ms))
         async with Bus.connect(settings) as bus:

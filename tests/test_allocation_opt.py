@@ -118,6 +118,19 @@ def test_fuel_gap_shortfall_names_the_robots() -> None:
         allocate("opt", 30, [0, 1, 20], fuel=[None, 1, 1])
 
 
+@pytest.mark.parametrize(("n", "starts", "fuel"), [
+    (20, [0, 10], [18, 0]),  # the total is exactly the 18 sub-cells: short only by turning back
+    (30, [0, 5, 24], [10, 9, 9]),  # robots 1 and 2 have exactly the 18 between them
+])
+def test_fuel_exactly_at_a_named_limit_blames_the_turning_back(
+        n: int, starts: list[int], fuel: list[int]) -> None:
+    # At the boundary neither the total nor the pair is short; brute force agrees that the
+    # limits still make coverage impossible, and the message says why.
+    assert brute_force_opt(n, starts, fuel=fuel) == math.inf
+    with pytest.raises(InfeasiblePlanError, match="walking both ways costs extra moves"):
+        allocate("opt", n, starts, fuel=fuel)
+
+
 def test_fuel_exactly_enough_is_feasible() -> None:
     (only,) = allocate("opt", 10, [0], fuel=[9])
     assert only.steps == 9

@@ -38,6 +38,36 @@ def test_a_failing_trial_s_command_re_runs_that_trial_alone(tmp_path: Path) -> N
     assert "lost" in table([outcome]).splitlines()[0]
 
 
+async def test_a_campaign_runs_at_most_jobs_trials_at_once_and_a_host_starver_alone(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import asyncio
+
+    from deploy.chaos import campaign as campaign_module
+
+    running: list[Trial] = []
+    seen: list[tuple[int, bool]] = []  # (trials running, a host starver among them)
+
+    async def fake_trial(trial: Trial, workdir: Path) -> Outcome:
+        running.append(trial)
+        seen.append((len(running), any(campaign_module.exclusive(t) for t in running)))
+        # Long enough that the next trials are started before this one ends.
+        for _ in range(5):
+            await asyncio.sleep(0)
+        running.remove(trial)
+        return Outcome(trial, "ok", "", 0.0)
+
+    monkeypatch.setattr(campaign_module, "run_trial", fake_trial)
+    campaign = Campaign(seed=4, scenarios=("none", "kill", "hang", "starve-host"))
+    lines: list[str] = []
+    outcomes = await campaign_module.run_campaign(campaign, range(12), tmp_path, lines.append,
+                                                  jobs=3)
+    assert sorted(o.trial.index for o in outcomes) == list(range(12)) and len(lines) == 12
+    assert (tmp_path / "trials.jsonl").read_text().count("\n") == 12
+    assert max(n for n, _ in seen) == 3, seen  # side by side, never more than three
+    assert all(n == 1 for n, starver in seen if starver), seen  # the starver alone
+    assert sum(starver for _, starver in seen) == 3
+
+
 def test_a_completed_mission_whose_recording_has_a_gap_record_is_ok(tmp_path: Path) -> None:
     import json
 

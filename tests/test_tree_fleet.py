@@ -254,3 +254,21 @@ def test_mstc_kill_and_down_act_on_a_tree_fleet(tmp_path: Path) -> None:
         assert not any(is_running(ProcessRecord(**p)) for p in records)
     finally:
         stop_processes([p for p in (fleet, second) if p is not None])
+
+
+async def test_no_robot_starts_before_the_recorder_listens(tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    # Tree reports have no publisher cache: a recorder that joined after the first step
+    # would miss it for good (seen once under load: "visited 977 of 1023 nodes"). With a
+    # recorder that never subscribes, the launcher must give up without spawning a robot.
+    from deploy import tree_fleet
+    from deploy.errors import FleetError
+
+    monkeypatch.setattr(tree_fleet, "RECORDER_WAIT_S", 1.0)
+    options = tree_fleet.TreeFleetOptions(tree="perfect:N=2,H=3", robots=2, algo="cocta",
+                                          run_dir=tmp_path / "run", mission="rec-wait")
+    fleet = tree_fleet.TreeFleet(options, lambda _line: None, recording=asyncio.Event())
+    with pytest.raises(FleetError, match="recorder did not connect"):
+        await fleet.run()
+    assert fleet.router is not None and fleet.radio is None and fleet.agents == []

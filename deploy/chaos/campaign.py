@@ -3,11 +3,14 @@ line per trial, and the one command that re-runs each failing trial alone."""
 
 from __future__ import annotations
 
+import asyncio
+import functools
 import json
 import shlex
 import statistics
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import TextIO
 
 from deploy.chaos.schedule import Campaign, Fault, Trial, make_trial
 from deploy.chaos.trial import Outcome, run_trial
@@ -25,29 +28,60 @@ def rerun_command(campaign: Campaign, index: int, out: Path) -> str:
     return shlex.join(argv)
 
 
+def exclusive(trial: Trial) -> bool:
+    """A trial that loads the whole host (one busy process per core) runs alone: beside other
+    trials it would starve their fleets too, and its figures would not be its own."""
+    return any(f.kind == "starve" and f.robot is None for f in trial.faults)
+
+
 async def run_campaign(campaign: Campaign, indices: Iterable[int], out: Path,
-                       say: Callable[[str], None]) -> list[Outcome]:
+                       say: Callable[[str], None], *, jobs: int = 1) -> list[Outcome]:
+    """Run the trials, up to ``jobs`` at a time (each its own router, port and directory;
+    a host-starving trial alone), appending each outcome to ``out/trials.jsonl`` as it ends."""
+    if jobs < 1:
+        raise ValueError("jobs must be >= 1")
     out.mkdir(parents=True, exist_ok=True)
     outcomes: list[Outcome] = []
     indices = list(indices)
-    with (out / "trials.jsonl").open("a") as jsonl:
-        for number, index in enumerate(indices, 1):
-            trial = make_trial(campaign, index)
+    slots = asyncio.Condition()
+    running = 0
+
+    def fits(weight: int) -> bool:
+        return running + weight <= jobs
+
+    async def one(index: int, trial: Trial, weight: int, jsonl: TextIO) -> None:
+        nonlocal running
+        try:
             outcome = await run_trial(trial, out / f"trial-{index}")
-            outcomes.append(outcome)
-            jsonl.write(json.dumps(outcome.to_json(), sort_keys=True) + "\n")
-            jsonl.flush()
-            lost = sum(o.verdict != "ok" for o in outcomes)
-            say(f"[{number}/{len(indices)}] trial {index}: {trial.algo} k={trial.robots} "
-                f"{trial.world} {trial.scenario}: {outcome.verdict.upper()} "
-                f"({outcome.wall_seconds:.1f} s{'; ' + outcome.detail if outcome.detail else ''})"
-                f" — {lost} not ok so far")
+        finally:
+            async with slots:
+                running -= weight
+                slots.notify_all()
+        outcomes.append(outcome)
+        jsonl.write(json.dumps(outcome.to_json(), sort_keys=True) + "\n")
+        jsonl.flush()
+        lost = sum(o.verdict != "ok" for o in outcomes)
+        say(f"[{len(outcomes)}/{len(indices)}] trial {index}: {trial.algo} k={trial.robots} "
+            f"{trial.world} {trial.scenario}: {outcome.verdict.upper()} "
+            f"({outcome.wall_seconds:.1f} s{'; ' + outcome.detail if outcome.detail else ''})"
+            f" — {lost} not ok so far")
+
+    with (out / "trials.jsonl").open("a") as jsonl:
+        async with asyncio.TaskGroup() as group:
+            for index in indices:
+                trial = make_trial(campaign, index)
+                weight = jobs if exclusive(trial) else 1
+                async with slots:
+                    await slots.wait_for(functools.partial(fits, weight))
+                    running += weight
+                group.create_task(one(index, trial, weight, jsonl))
     return outcomes
 
 
 def not_injected(outcome: Outcome) -> bool:
     """A fault fell after the mission's end (its target was gone): the trial ran without it."""
-    return any("no such process" in line or "never came" in line for line in outcome.injected)
+    return any(mark in line for line in outcome.injected
+               for mark in ("no such process", "never came", "not carried out"))
 
 
 def table(outcomes: list[Outcome]) -> str:

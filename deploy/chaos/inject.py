@@ -26,6 +26,10 @@ from deploy.chaos.schedule import Fault
 from deploy.fleet import mstc_argv
 
 
+class InjectionError(RuntimeError):
+    """A fault could not be carried out (the trial would run without it unseen)."""
+
+
 class RouterProcess:
     """A ``mstc router`` on ``endpoint`` that can be killed, restarted and frozen."""
 
@@ -102,9 +106,33 @@ def tcp_ports(pid: int, remote_port: int) -> list[int]:
 
 
 def _iptables(action: str, port: int) -> None:
+    """Insert (-I) or delete (-D) the two DROP rules of one local port on lo."""
+    done_directions: list[str] = []
     for direction in ("--sport", "--dport"):
-        subprocess.run(["iptables", action, "INPUT", "-i", "lo", "-p", "tcp", direction,
-                        str(port), "-j", "DROP"], capture_output=True, check=False)
+        # -w: trials running side by side take the xtables lock in turn instead of failing.
+        done = subprocess.run(["iptables", "-w", "5", action, "INPUT", "-i", "lo", "-p", "tcp",
+                               direction, str(port), "-j", "DROP"],
+                              capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            if action == "-I":  # no half partition left behind
+                for undo in done_directions:
+                    subprocess.run(["iptables", "-w", "5", "-D", "INPUT", "-i", "lo", "-p",
+                                    "tcp", undo, str(port), "-j", "DROP"],
+                                   capture_output=True, check=False)
+            raise InjectionError(f"iptables {action} port {port}: "
+                                 f"{done.stderr.strip() or done.returncode}")
+        done_directions.append(direction)
+
+
+def _heal(ports: list[int]) -> str:
+    """Delete the rules of ``ports``; what could not be deleted, as a note for the record."""
+    failed = []
+    for port in ports:
+        try:
+            _iptables("-D", port)
+        except InjectionError as error:
+            failed.append(str(error))
+    return f"; heal failed: {'; '.join(failed)}" if failed else ""
 
 
 class Injector:
@@ -151,14 +179,18 @@ class Injector:
             await _throttle(pid, fault.seconds, fault.share)
         elif fault.kind == "partition":
             ports = tcp_ports(pid, self.router.port)
-            for port in ports:
-                _iptables("-I", port)
+            cut: list[int] = []
             try:
-                await asyncio.sleep(fault.seconds)
-            finally:
                 for port in ports:
-                    _iptables("-D", port)
-            self.done.append(f"{fault.describe()}: ports {ports}")
+                    _iptables("-I", port)
+                    cut.append(port)
+                await asyncio.sleep(fault.seconds)
+            except InjectionError as error:
+                self.done.append(f"{fault.describe()}: not carried out: {error}")
+                return
+            finally:
+                healed = _heal(cut)
+            self.done.append(f"{fault.describe()}: ports {ports}{healed}")
             return
         self.done.append(fault.describe())
 

@@ -97,14 +97,17 @@ async def run_trial(trial: Trial, workdir: Path) -> Outcome:
                                           fault))
                 code = await asyncio.to_thread(up.wait)
         except TimeoutError:
-            _stop(up)
+            await asyncio.to_thread(_stop, up)
             code = None
         except BaseException:  # Ctrl-C or a failed injection: leave no fleet behind
             _stop(up)
             raise
     finally:
         router.kill()
-    return judge(trial, workdir, code, time.monotonic() - began, injector.done)
+    # In a thread: `mstc report` takes a second or two, and other trials of the campaign
+    # may be running on this loop.
+    return await asyncio.to_thread(judge, trial, workdir, code, time.monotonic() - began,
+                                   injector.done)
 
 
 async def _at(when: float, injector: Injector, fault: Any) -> None:

@@ -170,10 +170,12 @@ async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
                      stop: asyncio.Event | None = None, duration: float | None = None,
                      until_settled: bool = False, world_period: float = WORLD_PERIOD_S,
                      record: Path | None = None, record_mcap: Path | None = None,
-                     source: str = "monitor") -> FeedStats:
+                     source: str = "monitor",
+                     subscribed: asyncio.Event | None = None) -> FeedStats:
     """Watch ``settings.mission`` until ``stop``, ``duration`` or (optionally) the end of
     the mission; the final state and world are queried once more before returning.
-    ``record`` and ``record_mcap`` keep every message as JSON Lines and as MCAP."""
+    ``record`` and ``record_mcap`` keep every message as JSON Lines and as MCAP; ``subscribed``
+    is set once every subscription is declared."""
     stop = stop or asyncio.Event()
     async with open_session_async(settings) as session, Bus(session, settings.mission) as bus:
         watcher.connected = True
@@ -190,6 +192,8 @@ async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
         if kept:
             watcher.recorder = kept[0] if len(kept) == 1 else Recorders(kept)
         feed.start()
+        if subscribed is not None:
+            subscribed.set()
         try:
             return await _loop(feed, watcher, stop, duration, until_settled, world_period)
         finally:
@@ -218,14 +222,16 @@ async def until_connected(connected: Callable[[], bool], settings: ConnectionSet
 
 
 async def recorded(main: Awaitable[T], settings: ConnectionSettings, path: Path | None,
-                   source: str = "up", mcap: Path | None = None) -> T:
+                   source: str = "up", mcap: Path | None = None,
+                   recording: asyncio.Event | None = None) -> T:
     """Await ``main`` (a launcher) with a recorder of ``settings.mission`` beside it (JSON
     Lines to ``path``, MCAP to ``mcap``); the recording ends when ``main`` does (at once if
     the router never came up)."""
     stop, watcher = asyncio.Event(), Watcher(NullScreen())
     async with asyncio.TaskGroup() as group:
         recorder = group.create_task(watch_live(settings, watcher, stop=stop, record=path,
-                                                record_mcap=mcap, source=source))
+                                                record_mcap=mcap, source=source,
+                                                subscribed=recording))
         try:
             return await main
         finally:

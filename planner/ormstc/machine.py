@@ -89,7 +89,6 @@ class OrmstcMachine:
         self.sense_turns = 0
         self.ack_waits = 0  # claims that waited past their window for acknowledgements
         self.broadcasts = 0  # Broadcast requests returned by step (their index, from 1)
-        self.takeovers = 0
         self.finished = False  # announced completion and not withdrawn
         self.idle = False  # finished with nothing to take over; waiting for peers
         self.done_sent = False

@@ -41,7 +41,6 @@ class Robot(Protocol):
     freed: list[int]
     withdrawn_for: int | None
     asked: Request | None
-    takeovers: int
     finished: bool
     idle: bool
     done_sent: bool

@@ -87,7 +87,6 @@ def take_over(m: Robot, link: Link) -> Flow:
     m.decided[mine] = m.decided.get(mine, 0) & ~(1 << side)
     yield from m.decide(mine, side)
     if m.has_edge(mine, side):
-        m.takeovers += 1
         yield from m.cover(mine)
     return None
 
