@@ -61,6 +61,7 @@ MODULES: dict[str, list[str]] = {
 # With --with-fleet, the tests with real processes that guard a module as well.
 FLEET_TESTS: dict[str, list[str]] = {
     "deploy/supervisor.py": ["tests/test_up_negative.py"],
+    "bus/liveness.py": ["tests/test_bus_liveness_service.py"],
 }
 
 

@@ -56,6 +56,19 @@ def test_a_robots_own_stall_is_never_taken_as_a_peers_death() -> None:
     assert [n.robot for n in service.tick()] == [1] and [n.robot for n in heard] == [1]
 
 
+def test_a_notice_of_this_robot_in_a_life_it_never_had_is_refused_as_forged() -> None:
+    bus, heard = FakeBus(), []
+    service = LivelinessService(cast(Any, bus), 0, 1, on_death=heard.append)
+    service._on_heartbeat("mstc/t/hb/1", Heartbeat(1, 1, 0, None, "covering", 0.0))
+    # Robot 1 is a known participant, but this robot has incarnation 1, not 2: a notice
+    # for life 2 would fence this robot's next life in advance.
+    assert not service.accept_notice(DeathNotice(0, 2, 1, "heartbeat", 0.0))
+    assert bus.drops.total("death", "forged") == 1 and heard == []
+    # The positive witness: the same detector's verdict on this robot's own life is taken.
+    assert service.accept_notice(DeathNotice(0, 1, 1, "heartbeat", 0.0))
+    assert bus.drops.total("death", "forged") == 1
+
+
 NB = [(0, [1, 2, 3]), (4, [5, 6, 7]), (8, [9, 10, 11])]
 
 

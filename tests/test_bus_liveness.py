@@ -76,6 +76,24 @@ def test_stale_incarnation_is_fenced_and_new_life_accepted() -> None:
     assert fd.alive() == {4: 2}
 
 
+def test_a_restarted_robot_s_older_life_is_refused_even_if_never_declared_dead() -> None:
+    fd = FailureDetector(timeout=1.0)
+    assert fd.on_heartbeat(hb(4, 1), now=0.0)
+    assert fd.on_heartbeat(hb(4, 2), now=0.1)  # restarted before anyone saw it die
+    assert not fd.on_heartbeat(hb(4, 1), now=0.2)  # a late beat of the first life
+    assert fd.alive() == {4: 2} and not fd.is_dead(4, 1)
+
+
+def test_a_heartbeat_still_on_its_way_does_not_cancel_a_lost_token() -> None:
+    # Only the token coming back cancels the suspicion: a beat sent before the process
+    # died can arrive after its token was deleted.
+    fd = FailureDetector(timeout=5.0, token_grace=0.1)
+    fd.on_token(3, 2, now=0.0)
+    fd.on_token_deleted(3, 2, now=1.0)
+    assert fd.on_heartbeat(hb(3, 2), now=1.05)
+    assert [(n.robot, n.reason) for n in fd.expire(1.2)] == [(3, "token")]
+
+
 def test_death_notices_from_others_are_adopted_once() -> None:
     fd = FailureDetector(timeout=1.0, detector=0)
     fd.on_heartbeat(hb(5, 3), now=0.0)
