@@ -30,8 +30,8 @@ from agent.core.errors import HardwareError
 from agent.core.gather import BodyAgent
 from agent.core.hw_link import HwLink
 from agent.core.lifecycle import run_agent
-from agent.ormstc.body import Body, look
-from agent.ormstc.looks import MarkedSteps, glance
+from agent.ormstc.body import Body
+from agent.ormstc.looks import Looker, glance
 from agent.ormstc.options import OrmstcOptions
 from agent.ormstc.sensing import (
     HEADING_DELTA,
@@ -114,7 +114,7 @@ class OrmstcAgent(BodyAgent):
     def _wire(self, bus: Bus) -> None:
         c, m = self.config, bus.mission
         self.body = Body(bus, self.robot, c.incarnation, c.hw_timeout)
-        self.looking = MarkedSteps(self.body, self._look_step)
+        self.looker = Looker(self.body, self.sonar, self._look_step)
         self.inbound = Inbound(self.robot, c.k, bus.drops)
         self.liveness = self._make_liveness(bus, self._on_death, self._heartbeat_info)
         self.announcer = self._make_announcer(bus, self.state_message)
@@ -241,8 +241,7 @@ class OrmstcAgent(BodyAgent):
     # --- requests -------------------------------------------------------------------------
 
     async def sense(self, request: Sense) -> SenseResult:
-        return await look(self.looking, self.sonar, request, self.options.sense_mode,
-                          self.may_hold_body)
+        return await self.looker.sense(request, self.options.sense_mode, self.may_hold_body)
 
     def _look_step(self, seq: int, cell: SubCell) -> None:
         """A step made only to sense, published so that a report does not take it for a
@@ -251,6 +250,8 @@ class OrmstcAgent(BodyAgent):
                          LookStep(self.robot, self.config.incarnation, seq, cell))
 
     async def move(self, to: SubCell) -> bool:
+        if await self.looker.settle(to):
+            return True  # the last look's step aside went there: the rays are read already
         assert self.body.pose is not None
         delta = (to[0] - self.body.pose[0], to[1] - self.body.pose[1])
         await self.body.face(HEADING_DELTA.index(delta))
@@ -347,7 +348,8 @@ class OrmstcAgent(BodyAgent):
         detail = (f"{machine.moves} moves, {len(machine.mine)} cells, {self.sent} messages, "
                   f"{self.sent_bytes} bytes, {self.resender.resent} resent "
                   f"({self.resent_bytes} bytes), {machine.ack_waits} claims waited for "
-                  f"acknowledgements, {self.sonar.steps} steps to look, "
+                  f"acknowledgements, {self.sonar.steps} steps to look "
+                  f"({self.sonar.beside_looks} looks from beside), "
                   f"{self.sonar.glance_readings} readings after moves")
         if done:
             self._status("done")
