@@ -51,6 +51,7 @@ from bus.messages import (
     LookStep,
     OrmstcWire,
     RobotStatus,
+    SonarRays,
 )
 from planner.ormstc.conflicts import restate
 from planner.ormstc.machine import OrmstcMachine
@@ -124,6 +125,7 @@ class OrmstcAgent(BodyAgent):
                       recover=True)
         bus.subscribe(keys.all_statuses(m), RobotStatus, self._on_status, LatestWins())
         bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
+        bus.subscribe(keys.all_sonar_rays(m), SonarRays, self._on_rays, BoundedFifo(4096))
 
     def _heartbeat_info(self) -> HeartbeatInfo:
         return HeartbeatInfo(pose=self.body.pose, state=self.state, said=self.sent,
@@ -149,6 +151,17 @@ class OrmstcAgent(BodyAgent):
         if upto > self._acks.get(robot, 0):
             self._acks[robot] = upto
             self._wake(PeerAck(robot, upto))
+
+    def _on_rays(self, key: str, rays: SonarRays) -> None:
+        if rays.robot != self.robot:
+            self.sonar.hear(rays.rays)
+
+    def _tell_rays(self) -> None:
+        """Publish the rays read since the last time: peers look from beside less often."""
+        rays = self.sonar.told()
+        if rays:
+            self.bus.publish(keys.sonar_rays(self.bus.mission, self.robot),
+                             SonarRays(self.robot, self.config.incarnation, rays))
 
     def _on_status(self, key: str, status: RobotStatus) -> None:
         if 0 <= status.robot < self.config.k and status.robot != self.robot:
@@ -339,9 +352,13 @@ class OrmstcAgent(BodyAgent):
         elif isinstance(request, IsAlive):
             return AliveResult(request.robot, self.alive(request.robot))
         elif isinstance(request, Sense):
-            return await self.sense(request)
+            result = await self.sense(request)
+            self._tell_rays()
+            return result
         elif isinstance(request, Move):
-            return MoveResult(await self.move(request.to))
+            moved = await self.move(request.to)
+            self._tell_rays()
+            return MoveResult(moved)
         return None  # Done: read from machine.done_sent, which a withdrawal resets
 
     def _finished(self, done: bool, machine: OrmstcMachine) -> None:
