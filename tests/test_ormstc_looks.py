@@ -23,6 +23,7 @@ from test_ormstc_sensing import (
 from agent.ormstc.body import look
 from agent.ormstc.looks import Looker, MarkedSteps, glance
 from agent.ormstc.sensing import (
+    BodyTest,
     SonarMap,
     ahead,
     beside,
@@ -47,6 +48,8 @@ from planner.ormstc.types import (
     SubCell,
     Tick,
 )
+from simhw.sensors import sonar_range
+from simhw.types import Heading
 
 
 def test_only_steps_that_moved_are_numbered() -> None:
@@ -258,3 +261,68 @@ def test_a_look_that_stays_aside_is_exact_and_one_step_from_home(
                 else:
                     assert looker.home == pos and looker.marked.held == [at]
                     assert at == beside(pos, direction_to(here, target))
+
+
+# ---- rays told to peers (SonarRays) ----------------------------------------------------------
+
+def _room_with_a_peer_ray() -> tuple[StandIn, SonarMap]:
+    """An empty room; a peer read west along row 3 from (3, 6): cell (1, 0)'s lower half,
+    which the robot at (2, 2) cannot see from there, is in the memory it was told."""
+    blocked = np.zeros((8, 8), dtype=bool)
+    peer = SonarMap()
+    peer.record((3, 6), 3, sonar_range(blocked, (3, 6), Heading(3), peer.max_range), NOBODY)
+    mine = SonarMap()
+    mine.hear(peer.told())
+    assert not peer.rays and {(3, 1), (3, 0)} <= mine.shared and not mine.free
+    return StandIn(blocked, (2, 2, 2)), mine
+
+
+def test_a_peers_ray_spares_a_look_from_beside() -> None:
+    body, sonar = _room_with_a_peer_ray()
+    looker = Looker(body, sonar, lambda seq, cell: None)
+    result = asyncio.run(looker.sense(Sense(((1, 0),)), SenseMode.SINGLE, NOBODY))
+    assert dict(result.statuses) == {(1, 0): CellStatus.FREE}
+    assert sonar.beside_looks == 0 and body.forwards == 0
+
+
+def test_a_peers_ray_is_not_trusted_where_a_body_may_be() -> None:
+    body, sonar = _room_with_a_peer_ray()
+    looker = Looker(body, sonar, lambda seq, cell: None)
+    anybody: BodyTest = lambda _cell: True  # noqa: E731 - someone owns or claims the cell
+    result = asyncio.run(looker.sense(Sense(((1, 0),)), SenseMode.SINGLE, anybody))
+    assert dict(result.statuses) == {(1, 0): CellStatus.FREE}
+    assert sonar.beside_looks == 1  # looked itself: the peer's ray may predate a body
+
+
+def test_rays_out_of_shape_are_ignored() -> None:
+    sonar = SonarMap()
+    sonar.hear([(0, 0, 4, 3), (0, 0, 1, 0), (0, 0, 1, sonar.max_range + 1), (0, 0, -1, 2)])
+    assert not sonar.shared
+    sonar.hear([(0, 0, 1, 2)])
+    assert sonar.shared == {(0, 1), (0, 2)}
+
+
+@settings(max_examples=100, deadline=None)
+@given(worlds(), st.lists(st.tuples(st.integers(0, 11), st.integers(0, 11), st.integers(0, 3)),
+                          max_size=30))
+def test_looks_stay_exact_with_rays_told_by_peers(
+        case: tuple[np.ndarray, SubCell], peer_rays: list[tuple[int, int, int]]) -> None:
+    """Peers' rays cast by simhw's ray cast from free sub-cells anywhere: whatever they add
+    to a robot's memory, every status it reports from every pose of its cell is exact."""
+    blocked, start = case
+    h, w = blocked.shape
+    peer = SonarMap()
+    for r, c, d in peer_rays:
+        if r < h and c < w and not blocked[r, c]:
+            peer.record((r, c), d, sonar_range(blocked, (r, c), Heading(d), peer.max_range),
+                        NOBODY)
+    told = peer.told()
+    here = cell_of(start)
+    for pos in sub_cells(here):
+        for target in neighbours(here):
+            sonar = SonarMap()
+            sonar.hear(told)
+            body = StandIn(blocked, (*pos, 0))
+            result = asyncio.run(Looker(body, sonar, lambda seq, cell: None).sense(
+                Sense((target,)), SenseMode.ALL, NOBODY))
+            assert dict(result.statuses)[target] is exact(blocked, target), (pos, target)
