@@ -10,10 +10,10 @@ delay the claim window must exceed twice. fleet: full missions (router, ``mstc s
 --time-scale X`` (default 0), k ``mstc agent --algo ormstc``) from seeded random starts (one
 robot per cell), against ``planner.ormstc.lockstep.simulate`` on the same world and starts:
 coverage time in moves (most moves of any robot) distributed / lockstep, ORMSTC messages and
-bytes per robot per move (every message heard on ``ormstc/*``, bytes as encoded), and wall time;
-each
-robot's look steps (LookStep: steps aside and back made only to sense, which the lockstep
-model does not make) and the ratio without them.
+bytes per robot per move (every message heard on ``ormstc/*``, bytes as encoded), the same for
+the sonar rays told to peers (``sonar/*``), and wall time; each robot's look steps (LookStep:
+steps aside and back made only to sense, which the lockstep model does not make), the looks
+from beside of all robots (their "completed" events) and the ratio without look steps.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import random
+import re
 import socket
 import statistics
 import subprocess
@@ -41,6 +42,8 @@ from bus.messages import (
     OrmstcStart,
     OrmstcTreeEdge,
     OrmstcWire,
+    RobotEvent,
+    SonarRays,
     WorldState,
     world_visits,
 )
@@ -52,6 +55,7 @@ from planner.ormstc.types import SenseMode
 from planner.types import OccupancyGrid, SubCell
 
 MISSION = "bench-ormstc"
+_LOOKS_BESIDE = re.compile(r"\((\d+) looks from beside\)")
 
 
 def pick_free_port() -> int:
@@ -131,9 +135,13 @@ def cell_starts(grid: OccupancyGrid, k: int, seed: int) -> tuple[SubCell, ...]:
 
 async def mission(endpoint: str, world: str, starts: tuple[SubCell, ...], name: str,
                   sonar: str, scale: float) -> tuple[WorldState, Counter[int], Counter[int], float,
-                                                     int, dict[int, int]]:
+                                                     int, dict[int, int], dict[int, int],
+                                                     tuple[Counter[int], Counter[int]]]:
     counts: Counter[int] = Counter()
     looks: dict[int, int] = {}  # each robot's steps made only to sense (highest LookStep seq)
+    beside: dict[int, int] = {}  # each robot's looks from beside (its "completed" event)
+    told: Counter[int] = Counter()  # SonarRays heard per robot (not on ormstc/*), and bytes
+    told_bytes: Counter[int] = Counter()
     sizes: Counter[int] = Counter()
     owners: dict[tuple[int, int], set[int]] = {}
     settings = ConnectionSettings(connect=(endpoint,), mission=name)
@@ -149,8 +157,19 @@ async def mission(endpoint: str, world: str, starts: tuple[SubCell, ...], name: 
         def looked(_key: str, step: LookStep) -> None:
             looks[step.robot] = max(looks.get(step.robot, 0), step.seq)
 
+        def rays(_key: str, msg: SonarRays) -> None:
+            told[msg.robot] += 1
+            told_bytes[msg.robot] += len(encode(msg))
+
+        def event(_key: str, ev: RobotEvent) -> None:
+            found = _LOOKS_BESIDE.search(ev.detail) if ev.kind == "completed" else None
+            if found is not None:
+                beside[ev.robot] = int(found.group(1))
+
         bus.subscribe(keys.all_ormstc(name), WIRE_TYPES, heard, BoundedFifo(1 << 20))
         bus.subscribe(keys.all_look_steps(name), LookStep, looked, BoundedFifo(1 << 16))
+        bus.subscribe(keys.all_events(name), RobotEvent, event, BoundedFifo(1 << 12))
+        bus.subscribe(keys.all_sonar_rays(name), SonarRays, rays, BoundedFifo(1 << 16))
         await asyncio.sleep(0.3)
         conn = ["--connect", endpoint, "--mission", name]
         robots = ";".join(f"{r},{c}" for r, c in starts)
@@ -171,7 +190,7 @@ async def mission(endpoint: str, world: str, starts: tuple[SubCell, ...], name: 
         if any(codes):
             print(f"  agent exit codes {codes}", flush=True)
     shared = sum(len(robots) > 1 for robots in owners.values())  # nobody dies here
-    return state, counts, sizes, wall, shared, looks
+    return state, counts, sizes, wall, shared, looks, beside, (told, told_bytes)
 
 
 def run_fleet(args: argparse.Namespace) -> None:
@@ -184,7 +203,7 @@ def run_fleet(args: argparse.Namespace) -> None:
             starts = cell_starts(grid, args.robots, args.seed + run)
             mode = SenseMode.SINGLE if args.sonar != "all" else SenseMode.ALL
             lock = simulate(grid, starts, SimConfig(sense_mode=mode))
-            state, counts, sizes, wall, shared, looks = asyncio.run(
+            state, counts, sizes, wall, shared, looks, beside, (told, told_bytes) = asyncio.run(
                 mission(endpoint, args.world, starts, f"{MISSION}-{run}", args.sonar,
                         args.time_scale))
             moves = [t.covered - 1 for t in state.robots]
@@ -195,15 +214,20 @@ def run_fleet(args: argparse.Namespace) -> None:
             walks = [m - looks.get(r, 0) for r, m in enumerate(moves)]
             walk_ratios.append(max(walks) / lock.makespan)
             msgs = [counts[r] / max(m, 1) for r, m in enumerate(moves)]
+            rays = [told[r] / max(m, 1) for r, m in enumerate(moves)]
+            ray_bytes = [told_bytes[r] / max(m, 1) for r, m in enumerate(moves)]
             size = [sizes[r] / max(m, 1) for r, m in enumerate(moves)]
             per_move.extend(msgs)
             bytes_move.extend(size)
             twice = int((visits > 1).sum())
             print(f"run {run}: starts {starts}: moves {moves} (lockstep {list(lock.moves)}), "
                   f"ratio {ratio:.3f}; look steps {[looks.get(r, 0) for r in range(len(moves))]}"
+                  f" ({sum(beside.values())} looks from beside)"
                   f", ratio without them {walk_ratios[-1]:.3f}; "
                   f"messages/move {statistics.mean(msgs):.2f}, "
-                  f"bytes/move {statistics.mean(size):.1f}; sub-cells entered twice {twice}; "
+                  f"bytes/move {statistics.mean(size):.1f}; sonar rays to peers: messages/move "
+                  f"{statistics.mean(rays):.2f}, bytes/move {statistics.mean(ray_bytes):.1f}; "
+                  f"sub-cells entered twice {twice}; "
                   f"cells owned by two robots {shared}; "
                   f"wall {wall:.1f} s", flush=True)
     finally:

@@ -123,6 +123,14 @@ def all_look_steps(mission: str) -> str:
     return wildcard("look", mission)
 
 
+def sonar_rays(mission: str, robot: int) -> str:
+    return build("sonar", mission, robot)
+
+
+def all_sonar_rays(mission: str) -> str:
+    return wildcard("sonar", mission)
+
+
 def death(mission: str, robot: int) -> str:
     """Where death notices *about* ``robot`` are published."""
     return build("death", mission, robot)

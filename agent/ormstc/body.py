@@ -116,14 +116,17 @@ _ALL_SONARS: tuple[Sensor, ...] = ("front", "left", "right")
 
 
 async def look(body: Hardware, sonar: SonarMap, request: Sense, mode: SenseMode,
-               may_hold_body: BodyTest) -> SenseResult:
+               may_hold_body: BodyTest, stay: bool = False) -> SenseResult:
     """The answer to ``request``: no cell is FREE unless both of its halves were seen free.
 
     The target gets an extra look from the sub-cell beside when its other half is unknown;
     another requested cell with an unknown half is left out (the machine then senses it
     again when it decides it). All three sonars are read whatever was asked (one command
     each in one-at-a-time mode): a reading takes 0.1 s of simhw time, a step aside and back
-    about 8 s, and the extra rays spare many of those (docs/ormstc.md).
+    about 8 s, and the extra rays spare many of those (docs/ormstc.md). With ``stay`` the
+    body is left on the sub-cell beside, if it stepped there: that sub-cell is the walk's
+    next one unless the robot grows into the target (agent.ormstc.looks.Looker steps back
+    only then).
     """
     pose = _pose(body)
     pos: SubCell = (pose[0], pose[1])
@@ -138,15 +141,17 @@ async def look(body: Hardware, sonar: SonarMap, request: Sense, mode: SenseMode,
         direction = direction_of(heading, sensor)
         status = judge(cell, pos, direction, ranges.get(sensor), sonar, may_hold_body)
         if status is None and cell == target:
-            status = await _look_beside(body, sonar, target, pos, direction, may_hold_body)
+            status = await _look_beside(body, sonar, target, pos, direction, may_hold_body,
+                                        stay)
         if status is not None:
             statuses.append((cell, status))
     return SenseResult(tuple(statuses))
 
 
 async def _look_beside(body: Hardware, sonar: SonarMap, target: Cell, pos: SubCell,
-                       direction: int, may_hold_body: BodyTest) -> CellStatus:
-    """Step to the sub-cell beside ``pos``, look along ``direction`` at ``target``, step back."""
+                       direction: int, may_hold_body: BodyTest, stay: bool) -> CellStatus:
+    """Step to the sub-cell beside ``pos``, look along ``direction`` at ``target``, step back
+    unless ``stay``."""
     side = beside(pos, direction)
     aside = direction_to(pos, side)
     sonar.beside_looks += 1
@@ -158,13 +163,20 @@ async def _look_beside(body: Hardware, sonar: SonarMap, target: Cell, pos: SubCe
     sensor = cast(Sensor, sensor_for(aside, direction))  # a side sonar: never behind
     ranges = await _read(body, sonar, _ALL_SONARS, side, aside, may_hold_body)
     status = judge(target, side, direction, ranges.get(sensor), sonar, may_hold_body)
-    await _face(body, (aside + 2) % 4, sonar)
-    if not await body.forward():
-        raise HardwareError(f"cannot step back to {pos} after looking at cell {target} "
-                            "from beside: something entered the robot's own cell")
-    sonar.steps += 1
+    if not stay:
+        await step_back(body, sonar, pos)
     # both halves are in the memory now, so None cannot come back; if it did, never say FREE
     return CellStatus.ROBOT if status is None else status
+
+
+async def step_back(body: Hardware, sonar: SonarMap, to: SubCell) -> None:
+    """Step from the sub-cell beside back to ``to`` in the robot's own cell."""
+    pose = _pose(body)
+    await _face(body, direction_to((pose[0], pose[1]), to), sonar)
+    if not await body.forward():
+        raise HardwareError(f"cannot step back to {to} after looking from beside: "
+                            "something entered the robot's own cell")
+    sonar.steps += 1
 
 
 async def _read(body: Hardware, sonar: SonarMap, sensors: tuple[Sensor, ...], pos: SubCell,

@@ -30,8 +30,8 @@ from agent.core.errors import HardwareError
 from agent.core.gather import BodyAgent
 from agent.core.hw_link import HwLink
 from agent.core.lifecycle import run_agent
-from agent.ormstc.body import Body, look
-from agent.ormstc.looks import MarkedSteps, glance
+from agent.ormstc.body import Body
+from agent.ormstc.looks import Looker, glance
 from agent.ormstc.options import OrmstcOptions
 from agent.ormstc.sensing import (
     HEADING_DELTA,
@@ -51,6 +51,7 @@ from bus.messages import (
     LookStep,
     OrmstcWire,
     RobotStatus,
+    SonarRays,
 )
 from planner.ormstc.conflicts import restate
 from planner.ormstc.machine import OrmstcMachine
@@ -114,7 +115,7 @@ class OrmstcAgent(BodyAgent):
     def _wire(self, bus: Bus) -> None:
         c, m = self.config, bus.mission
         self.body = Body(bus, self.robot, c.incarnation, c.hw_timeout)
-        self.looking = MarkedSteps(self.body, self._look_step)
+        self.looker = Looker(self.body, self.sonar, self._look_step)
         self.inbound = Inbound(self.robot, c.k, bus.drops)
         self.liveness = self._make_liveness(bus, self._on_death, self._heartbeat_info)
         self.announcer = self._make_announcer(bus, self.state_message)
@@ -124,6 +125,7 @@ class OrmstcAgent(BodyAgent):
                       recover=True)
         bus.subscribe(keys.all_statuses(m), RobotStatus, self._on_status, LatestWins())
         bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
+        bus.subscribe(keys.all_sonar_rays(m), SonarRays, self._on_rays, BoundedFifo(4096))
 
     def _heartbeat_info(self) -> HeartbeatInfo:
         return HeartbeatInfo(pose=self.body.pose, state=self.state, said=self.sent,
@@ -149,6 +151,17 @@ class OrmstcAgent(BodyAgent):
         if upto > self._acks.get(robot, 0):
             self._acks[robot] = upto
             self._wake(PeerAck(robot, upto))
+
+    def _on_rays(self, key: str, rays: SonarRays) -> None:
+        if rays.robot != self.robot:
+            self.sonar.hear(rays.rays)
+
+    def _tell_rays(self) -> None:
+        """Publish the rays read since the last time: peers look from beside less often."""
+        rays = self.sonar.told()
+        if rays:
+            self.bus.publish(keys.sonar_rays(self.bus.mission, self.robot),
+                             SonarRays(self.robot, self.config.incarnation, rays))
 
     def _on_status(self, key: str, status: RobotStatus) -> None:
         if 0 <= status.robot < self.config.k and status.robot != self.robot:
@@ -241,8 +254,7 @@ class OrmstcAgent(BodyAgent):
     # --- requests -------------------------------------------------------------------------
 
     async def sense(self, request: Sense) -> SenseResult:
-        return await look(self.looking, self.sonar, request, self.options.sense_mode,
-                          self.may_hold_body)
+        return await self.looker.sense(request, self.options.sense_mode, self.may_hold_body)
 
     def _look_step(self, seq: int, cell: SubCell) -> None:
         """A step made only to sense, published so that a report does not take it for a
@@ -251,6 +263,8 @@ class OrmstcAgent(BodyAgent):
                          LookStep(self.robot, self.config.incarnation, seq, cell))
 
     async def move(self, to: SubCell) -> bool:
+        if await self.looker.settle(to):
+            return True  # the last look's step aside went there: the rays are read already
         assert self.body.pose is not None
         delta = (to[0] - self.body.pose[0], to[1] - self.body.pose[1])
         await self.body.face(HEADING_DELTA.index(delta))
@@ -338,16 +352,21 @@ class OrmstcAgent(BodyAgent):
         elif isinstance(request, IsAlive):
             return AliveResult(request.robot, self.alive(request.robot))
         elif isinstance(request, Sense):
-            return await self.sense(request)
+            result = await self.sense(request)
+            self._tell_rays()
+            return result
         elif isinstance(request, Move):
-            return MoveResult(await self.move(request.to))
+            moved = await self.move(request.to)
+            self._tell_rays()
+            return MoveResult(moved)
         return None  # Done: read from machine.done_sent, which a withdrawal resets
 
     def _finished(self, done: bool, machine: OrmstcMachine) -> None:
         detail = (f"{machine.moves} moves, {len(machine.mine)} cells, {self.sent} messages, "
                   f"{self.sent_bytes} bytes, {self.resender.resent} resent "
                   f"({self.resent_bytes} bytes), {machine.ack_waits} claims waited for "
-                  f"acknowledgements, {self.sonar.steps} steps to look, "
+                  f"acknowledgements, {self.sonar.steps} steps to look "
+                  f"({self.sonar.beside_looks} looks from beside), "
                   f"{self.sonar.glance_readings} readings after moves")
         if done:
             self._status("done")

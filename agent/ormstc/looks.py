@@ -2,9 +2,14 @@
 
 :class:`MarkedSteps` is the body as agent.ormstc.body.look sees it: a look moves the robot
 only to step to the sub-cell beside it and back (a thin sonar sees one half of a
-neighbouring cell), so every forward step made through it is a sensing step; the driver
-publishes each one (bus.messages.LookStep), and a report can tell these entries from
-coverage revisits (docs/monitor.md, "Redundancy").
+neighbouring cell), so a forward step made through it is a sensing step unless the walk
+goes on from there; the driver publishes each sensing step (bus.messages.LookStep), and a
+report can tell these entries from coverage revisits (docs/monitor.md, "Redundancy").
+
+:class:`Looker` does not step back after a look: the sub-cell beside is the corner the STC
+walk turns to next whenever the robot does not grow into the looked-at cell (an obstacle, a
+body, a lost claim), so it steps back only when the machine's next move leaves from the
+sub-cell it believes in, and otherwise the step aside was that move.
 
 :func:`glance` reads, after a move, the sonars whose rays may cross a sub-cell never seen,
 and remembers what they show: a reading costs 0.1 s of simhw time and no motion, a look
@@ -16,10 +21,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from agent.ormstc.body import Hardware
+from agent.core.errors import HardwareError
+from agent.ormstc.body import Hardware, look, step_back
 from agent.ormstc.sensing import BodyTest, SonarMap, direction_of, shows_news
 from bus.messages import Sensor
-from planner.ormstc.types import SubCell
+from planner.ormstc.types import Sense, SenseMode, SenseResult, SubCell
 
 _SONARS: tuple[Sensor, ...] = ("front", "left", "right")
 
@@ -28,12 +34,22 @@ StepSink = Callable[[int, SubCell], None]  # (the step's number from 1, the sub-
 
 class MarkedSteps:
     """A body's face / forward / sonar for :func:`agent.ormstc.body.look`; each forward
-    step that moved the body is numbered and handed to ``on_step``."""
+    step that moved the body is held until :meth:`publish` numbers it and hands it to
+    ``on_step`` (or :meth:`publish` is told the last one was a coverage move)."""
 
     def __init__(self, body: Hardware, on_step: StepSink) -> None:
         self._body = body
         self._on_step = on_step
-        self.steps = 0
+        self.steps = 0  # the look steps published
+        self.held: list[SubCell] = []  # sub-cells entered, not published yet
+
+    def publish(self, last_walked: bool = False) -> None:
+        """Publish the held steps as look steps; with ``last_walked`` the last one was the
+        walk's own move into its sub-cell and is not one."""
+        for sub in self.held[:-1] if last_walked else self.held:
+            self.steps += 1
+            self._on_step(self.steps, sub)
+        self.held = []
 
     @property
     def pose(self) -> tuple[int, int, int] | None:
@@ -50,12 +66,56 @@ class MarkedSteps:
         moved = await self._body.forward()
         pose = self._body.pose
         if moved and pose is not None:
-            self.steps += 1
-            self._on_step(self.steps, (pose[0], pose[1]))
+            self.held.append((pose[0], pose[1]))
         return moved
 
     async def sonar(self, sensors: tuple[Sensor, ...]) -> dict[str, int | None]:
         return await self._body.sonar(sensors)
+
+
+class Looker:
+    """The machine's Sense and the start of its Move with a body a look may leave beside
+    the sub-cell the machine believes the robot is on (``home``)."""
+
+    def __init__(self, body: Hardware, sonar: SonarMap, on_step: StepSink) -> None:
+        self.marked = MarkedSteps(body, on_step)
+        self.sonar = sonar
+        self.home: SubCell | None = None  # set while the body stands beside it
+
+    async def sense(self, request: Sense, mode: SenseMode,
+                    may_hold_body: BodyTest) -> SenseResult:
+        pose = self.marked.pose
+        if pose is None:
+            raise HardwareError("the body's pose is not known yet")
+        # a second look while aside comes back to the same sub-cell beside, so the body is
+        # always on home or one step from it (the step held, published or walked later)
+        stay = self.home is None
+        result = await look(self.marked, self.sonar, request, mode, may_hold_body, stay)
+        home = self.home or (pose[0], pose[1])
+        self.home = None if _sub(self.marked) == home else home
+        if self.home is None:
+            self.marked.publish()
+        return result
+
+    async def settle(self, to: SubCell) -> bool:
+        """Before the machine's move to ``to``: True if the body stands on ``to`` already
+        (the step aside was this move), else bring it back home (a look step) for the move."""
+        home, self.home = self.home, None
+        if home is None:
+            return False
+        if _sub(self.marked) == to:
+            self.marked.publish(last_walked=True)
+            self.sonar.steps -= 1  # counted as a look step when made
+            return True
+        await step_back(self.marked, self.sonar, home)
+        self.marked.publish()
+        return False
+
+
+def _sub(body: Hardware) -> SubCell:
+    if body.pose is None:
+        raise HardwareError("the body's pose is not known yet")
+    return (body.pose[0], body.pose[1])
 
 
 async def glance(body: Hardware, sonar: SonarMap, may_hold_body: BodyTest) -> int:

@@ -29,6 +29,7 @@ HEADING_DELTA: tuple[SubCell, ...] = tuple(h.delta for h in Heading)
 _RELATIVE_SENSOR = {0: "front", 1: "right", 3: "left"}
 
 BodyTest = Callable[[Cell], bool]
+Ray = tuple[int, int, int, int]  # row, col read from, direction, sub-cells ahead shown free
 
 
 def direction_to(cell: Cell, other: Cell) -> int:
@@ -73,6 +74,10 @@ class SonarMap:
     max_range: int = 8
     free: set[SubCell] = field(default_factory=set)
     static: set[SubCell] = field(default_factory=set)  # obstacles for certain
+    # what peers' rays showed free (SonarRays): used only for cells no body can be in, as
+    # the peer's reading may be older than a body's arrival
+    shared: set[SubCell] = field(default_factory=set)
+    rays: list[Ray] = field(default_factory=list)  # own rays recorded, not yet told to peers
     # what looking cost (agent.ormstc.body.look counts): sonar readings, looks from the
     # sub-cell beside, the forward steps they made (two each unless a body was in the way)
     # and the quarter turns made only to look
@@ -88,6 +93,8 @@ class SonarMap:
         last = self.max_range if reading is None else reading - 1
         for step in range(1, last + 1):
             self.free.add(ahead(pos, direction, step))
+        if last > 0:
+            self.rays.append((pos[0], pos[1], direction, last))
         if reading is None:
             return None
         hit = ahead(pos, direction, reading)
@@ -95,6 +102,19 @@ class SonarMap:
             self.static.add(hit)
             self.free.discard(hit)
         return hit
+
+
+    def hear(self, rays: Iterable[Ray]) -> None:
+        """Take in what a peer's rays showed free."""
+        for row, col, direction, last in rays:
+            if 0 <= direction < 4 and 0 < last <= self.max_range:
+                self.shared.update(ahead((row, col), direction, step)
+                                   for step in range(1, last + 1))
+
+    def told(self) -> tuple[Ray, ...]:
+        """The rays recorded since the last call, for peers."""
+        rays, self.rays = tuple(self.rays), []
+        return rays
 
 
 def shows_news(sonar: SonarMap, pos: SubCell, direction: int) -> bool:
@@ -116,8 +136,9 @@ def judge(cell: Cell, pos: SubCell, direction: int, reading: int | None, sonar: 
 
     The ray's half decides first (a hit inside the cell: obstacle or body, see the module
     doc). The cell is FREE only if every one of its sub-cells was once seen free — a static
-    world never blocks a sub-cell a ray has passed through. The unseen half is an obstacle
-    if a ray once showed a static obstacle there and no body can be in the cell.
+    world never blocks a sub-cell a ray has passed through; where no body can be, by this
+    robot's rays or a peer's (``shared``). The unseen half is an obstacle if a ray once
+    showed a static obstacle there and no body can be in the cell.
     """
     near = near_distance(pos, direction)
     if reading is not None and reading < near:
@@ -127,9 +148,13 @@ def judge(cell: Cell, pos: SubCell, direction: int, reading: int | None, sonar: 
     subs = sub_cells(cell)
     if all(sub in sonar.free for sub in subs):
         return CellStatus.FREE
-    # a remembered hit in a cell someone owned or claimed may have been a body since gone
-    if not may_hold_body(cell) and any(sub in sonar.static for sub in subs):
+    if may_hold_body(cell):
+        # a remembered hit may have been a body since gone; a peer's ray too old to show one
+        return None
+    if any(sub in sonar.static for sub in subs):
         return CellStatus.OBSTACLE
+    if all(sub in sonar.free or sub in sonar.shared for sub in subs):
+        return CellStatus.FREE
     return None
 
 

@@ -6,7 +6,7 @@ lifecycle  Heartbeat, RobotStatus (Hello), RobotEvent, DeathNotice, MissionStatu
 progress   Progress, LookStep, AgentState (with pack_covered / unpack_covered)
 hardware   HwCommand / HwReply, AdminCommand / AdminReply (the simulated hardware's API)
 world      the simulator's ground truth: GroundTruthPose, CoverEvent, BumpEvent, WorldState
-ormstc     the seven ORMSTC kinds (ORMSTC_MESSAGES, OrmstcWire)
+ormstc     the seven ORMSTC kinds (ORMSTC_MESSAGES, OrmstcWire), SonarRays (rays for peers)
 tree       TreeReport, RadioStats (connected tree coverage in the fleet)
 
 Every public name is re-exported here: import messages from ``bus.messages``.
@@ -45,6 +45,7 @@ from bus.messages.ormstc import (
     OrmstcTreeEdge,
     OrmstcWire,
     OrmstcWithdrawal,
+    SonarRays,
 )
 from bus.messages.progress import (
     AgentState,
@@ -85,7 +86,8 @@ __all__ = [
     "MissionState", "MissionStatus", "OrmstcClaim", "OrmstcCompletion", "OrmstcConnection",
     "OrmstcDeadRobot", "OrmstcStart", "OrmstcTreeEdge", "OrmstcWire", "OrmstcWithdrawal",
     "Pose", "Progress", "RadioStats", "ReplanReport", "RobotArray", "RobotEvent",
-    "RobotStateName", "RobotStatus", "RobotTruth", "Sensor", "SubCell", "SummaryValue",
+    "RobotStateName", "RobotStatus", "RobotTruth", "Sensor", "SonarRays", "SubCell",
+    "SummaryValue",
     "TreeReport",
     "WorldState", "make_world_state", "pack_covered", "unpack_covered",
     "version_problem", "world_crossed", "world_first", "world_free", "world_visits",

@@ -101,3 +101,17 @@ OrmstcWire = (OrmstcStart | OrmstcClaim | OrmstcTreeEdge | OrmstcConnection | Or
 ORMSTC_MESSAGES: tuple[type[Any], ...] = (
     OrmstcStart, OrmstcClaim, OrmstcTreeEdge, OrmstcConnection, OrmstcDeadRobot,
     OrmstcCompletion, OrmstcWithdrawal)
+
+
+@dataclass(frozen=True)
+class SonarRays:
+    """Rays an ORMSTC robot's sonar read (not a machine message: no ``seq``, best effort).
+    Per ray: the sub-cell it was read from, its heading (clockwise from north) and how many
+    sub-cells ahead it showed free. A static world never blocks a sub-cell once seen free,
+    so peers add these to what they know and look from beside less often; the hit is not
+    sent (only the sender can tell a body from an obstacle by what it knows)."""
+
+    KIND: ClassVar[str] = "sonar_rays"
+    robot: int
+    incarnation: int
+    rays: tuple[tuple[int, int, int, int], ...]

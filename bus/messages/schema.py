@@ -32,6 +32,7 @@ from bus.messages.ormstc import (
     OrmstcStart,
     OrmstcTreeEdge,
     OrmstcWithdrawal,
+    SonarRays,
 )
 from bus.messages.progress import AgentState, LookStep, Progress, ReplanReport
 from bus.messages.tree import RadioStats, TreeReport
@@ -195,6 +196,9 @@ KINDS: tuple[Kind, ...] = (
          C.CRITICAL),
     Kind(OrmstcWithdrawal, (family("ormstc/withdraw/{robot}", access=BY_OWN, cache=EVENT_CACHE),),
          C.CRITICAL),
+    # what a robot's sonar showed free, for its peers' sensing: outside ormstc/* (not the
+    # machine's ordered stream), dropped rather than delaying claims under congestion
+    Kind(SonarRays, (family("sonar/{robot}", access=BY_OWN),), C.STREAM, since=5),
     # connected tree coverage (bus.messages.tree): a lost report stalls the whole team's
     # step, so never drop it; the outbox is the robot's, only the radio fills inboxes
     # (an outbox carries relayed reports too: its robot is the sender)
