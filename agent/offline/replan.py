@@ -14,6 +14,7 @@ kept until its sender catches up.
 from __future__ import annotations
 
 import hashlib
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,7 +22,7 @@ from bus import keys
 from bus.drops import DropCounter
 from bus.messages import ReplanReport, unpack_covered
 from planner.offline.rebalance import Replan, Survivor, plan_order, rebalance
-from planner.types import BoolArray, Plan
+from planner.types import BoolArray, Cycle, IntArray, Plan
 
 
 class ReplanBoard:
@@ -68,9 +69,9 @@ class ReplanBoard:
         return {r: report.position for r, report in self.reports.items()
                 if r not in dead and report.dead == dead}
 
-    def replan(self, dead: tuple[int, ...]) -> tuple[Replan, BoolArray, str]:
-        """The re-plan of epoch ``dead`` (every report present), the coverage it knew, and
-        the digest of the reports it was made from."""
+    def inputs(self, dead: tuple[int, ...]) -> ReplanInputs:
+        """What the re-plan of epoch ``dead`` (every report present) is made from: a copy,
+        so that it can be computed off the event loop while reports keep arriving."""
         used = [self.reports[r] for r in range(self.k) if r not in dead]
         covered = np.zeros(self.cycle.n, dtype=bool)
         digest = hashlib.sha256(f"mstc-replan/1 dead={dead}\n".encode())
@@ -79,5 +80,20 @@ class ReplanBoard:
             digest.update(f"{report.robot} at {report.position} route {report.route}\n"
                           .encode())
         digest.update(np.packbits(covered).tobytes())
-        survivors = [Survivor(r.robot, r.position, r.route) for r in used]
-        return rebalance(self.cycle, covered, survivors, self.rank), covered, digest.hexdigest()
+        survivors = tuple(Survivor(r.robot, r.position, r.route) for r in used)
+        return ReplanInputs(self.cycle, covered, survivors, self.rank, digest.hexdigest())
+
+
+@dataclass(frozen=True)
+class ReplanInputs:
+    """One epoch's re-plan inputs and the digest of the reports they came from."""
+
+    cycle: Cycle
+    covered: BoolArray
+    survivors: tuple[Survivor, ...]
+    rank: IntArray
+    digest: str
+
+    def solve(self) -> Replan:
+        """The re-plan (pure; a second or more of CPU in a large fleet)."""
+        return rebalance(self.cycle, self.covered, self.survivors, self.rank)

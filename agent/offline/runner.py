@@ -14,6 +14,7 @@ steps aside for one whose next sub-cell it stands on, and a bump makes it decide
 
 from __future__ import annotations
 
+import asyncio
 import time
 from collections.abc import Awaitable, Callable
 from typing import Any
@@ -164,7 +165,12 @@ class OfflineRunner:
         self._announce(keys.replan(self.bus.mission, self.robot), mine)
         while self._dead() == dead and not m.all_covered:
             if not self.board.missing(dead):
-                replan, covered, digest = self.board.replan(dead)
+                inputs = self.board.inputs(dead)
+                # Off the loop: at 100 robots a re-plan is a second or more of CPU, and a
+                # blocked loop sends no heartbeats (under load, peers declared robots that
+                # were re-planning dead: chaos campaign of 2026-12-02, trial 41).
+                replan = await asyncio.to_thread(inputs.solve)
+                covered, digest = inputs.covered, inputs.digest
                 for index in np.flatnonzero(covered):
                     m.on_covered(int(index))
                 route = replan.routes[self.robot]
