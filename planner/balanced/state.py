@@ -51,6 +51,8 @@ class PartitionState:
         self.version = 0  # bumped by every change (restored by a rollback)
         # balance._find_chain: unit -> ((version, limit), regions that cannot reach a taker)
         self.dead_ends: dict[int, tuple[tuple[int, int], set[int]]] = {}
+        # reshape.reshape_pairs: (big, small, cells moved, their region versions) that failed
+        self.failed_resplits: set[tuple[int, int, int, int, int]] = set()
         self._begun = 0
         # per region: bumped when its cells, its pins or the owner of a cell next to it change
         # (all that the moves out of a region depend on)
