@@ -225,6 +225,11 @@ def _taker_scan(state: PartitionState, giver: int, unit: int) -> list[int]:
         return sorted({state.label[m.anchor] for m in _moves(state, giver, None, unit)})
     label, neighbours, pins = state.label, state.neighbours, state.pins
     found: set[int] = set()
+    # Cells the local test cannot clear wait until the others are done: most add no taker
+    # by then, and the region's cut cells (a pass over it, most of a scan's cost at
+    # k = 300) are computed only if one still would. The same set either way; the cut
+    # cells cached or not decide nothing for a region _exact takes without them.
+    unsure: list[tuple[int, list[int]]] = []
     for u in whole:
         if u in pins:
             continue
@@ -233,7 +238,18 @@ def _taker_scan(state: PartitionState, giver: int, unit: int) -> list[int]:
                      if (y := label[v]) >= 0 and y != giver and y not in found]
         else:
             fresh = [y for y in _takers_of(state, giver, unit, u) if y not in found]
-        if fresh and not state.is_cut(giver, u):
+        if not fresh:
+            continue
+        cut = state.cached_cut_cells(giver)
+        if cut is not None:
+            if u not in cut:
+                found.update(fresh)
+        elif state.locally_removable(giver, u):
+            found.update(fresh)
+        else:
+            unsure.append((u, fresh))
+    for u, fresh in unsure:
+        if any(y not in found for y in fresh) and not state.is_cut(giver, u):
             found.update(fresh)
     return sorted(found)
 
@@ -259,6 +275,14 @@ def _execute(state: PartitionState, chain: list[int], unit: int) -> tuple[int, i
     """Transfer along ``chain`` from its far end back; None, or the hop that failed."""
     state.begin()
     for giver, taker in reversed(list(itertools.pairwise(chain))):
+        if unit == WHOLE and len(state.whole[giver]) >= 2 and _exact(state, giver):
+            cell = _best_whole_cell(state, giver, taker)
+            if cell < 0:
+                state.rollback()
+                return (giver, taker)
+            state.release(giver, cell)
+            state.claim(taker, cell)
+            continue
         moves = _moves(state, giver, taker, unit)
         if not moves:
             state.rollback()
@@ -272,6 +296,26 @@ def _execute(state: PartitionState, chain: list[int], unit: int) -> tuple[int, i
             _split(state, giver, taker, move)
     state.commit()
     return None
+
+
+def _best_whole_cell(state: PartitionState, giver: int, taker: int) -> int:
+    """The cell _execute's max over _moves(state, giver, taker, WHOLE) picks (-1: none).
+
+    One pass, the same cut tests in the same order: the moves of a cell differ only in
+    their anchor, so the first cell of the best contact wins, as there.
+    """
+    label, neighbours, pins = state.label, state.neighbours, state.pins
+    best, best_gain = -1, 0
+    for u in state.whole[giver]:
+        if u in pins:
+            continue
+        around = [label[v] for v in neighbours[u]]
+        if taker not in around or state.is_cut(giver, u):
+            continue
+        gain = around.count(taker) - around.count(giver)
+        if best < 0 or gain > best_gain:
+            best, best_gain = u, gain
+    return best
 
 
 def _contact(state: PartitionState, u: int, region: int) -> int:

@@ -45,6 +45,7 @@ class PartitionState:
         self.load: list[int] = list(offsets) if offsets is not None else [0] * self.k
         self.pins: dict[int, int] = {}
         self._cut: dict[int, set[int]] = {}
+        self._hole_free: dict[int, bool] = {}
         self.pieces: dict[int, dict[int, list[int]]] = {}  # balance._piece cache
         # balance._takers cache: (robot, unit) -> (region version it was computed at, takers)
         self.takers: dict[tuple[int, int], tuple[int, list[int]]] = {}
@@ -111,6 +112,7 @@ class PartitionState:
         self.whole[robot].add(u)
         self.load[robot] += 4
         self._cut.pop(robot, None)
+        self._hole_free.pop(robot, None)
         self.pieces.pop(robot, None)
         self.version += 1
         if self._log is not None:  # the undo closure costs more than the change itself
@@ -122,6 +124,7 @@ class PartitionState:
         self._touch(u, robot)
         self.load[robot] -= 4
         self._cut.pop(robot, None)
+        self._hole_free.pop(robot, None)
         self.pieces.pop(robot, None)
         self.version += 1
         if self._log is not None:
@@ -164,6 +167,10 @@ class PartitionState:
     def has_cut_cells(self, robot: int) -> bool:
         return robot in self._cut
 
+    def cached_cut_cells(self, robot: int) -> set[int] | None:
+        """The region's cut cells if known (not changed since computed), else None."""
+        return self._cut.get(robot)
+
     def cut_cells(self, robot: int) -> set[int]:
         """Articulation cells of the region's whole cells (cached until the region changes)."""
         cut = self._cut.get(robot)
@@ -182,7 +189,24 @@ class PartitionState:
         cut = self._cut.get(robot)
         if cut is not None:
             return u in cut
-        return not self.locally_removable(robot, u) and u in self.cut_cells(robot)
+        if self.locally_removable(robot, u):
+            return False
+        # Around no hole the local test is exact: two region cells of u's ring that no run
+        # of the ring joins, joined by a path avoiding u, would close a loop round a ring
+        # cell outside the region. That spares a pass over the region (Hopcroft-Tarjan).
+        return (len(self.whole[robot]) > 1 and self.hole_free(robot)) or u in self.cut_cells(robot)
+
+    def hole_free(self, robot: int) -> bool:
+        """Whether the region's whole cells are connected and enclose no other cell.
+
+        Euler number V - E + F (cells, 4-adjacent pairs, 2 x 2 blocks) of a 4-connected
+        set is 1 minus its holes; cached until the region changes.
+        """
+        known = self._hole_free.get(robot)
+        if known is None:
+            known = _hole_free(self.whole[robot], self.neighbours, self.width)
+            self._hole_free[robot] = known
+        return known
 
     def locally_removable(self, robot: int, u: int) -> bool:
         """Whether ``u``'s region neighbours stay linked around it (then ``u`` is no cut).
@@ -214,6 +238,29 @@ class PartitionState:
             regions.append(Region(robot=robot, start=self.starts[robot], cells=cells,
                                   leaves=tuple(self.leaves[robot])))
         return Partition(regions=tuple(regions), transfers=transfers)
+
+
+def _hole_free(cells: set[int], neighbours: list[list[int]], width: int) -> bool:
+    """PartitionState.hole_free for one set of cells (flat indices, row width ``width``)."""
+    if not cells:
+        return False
+    edges = blocks = 0
+    for u in cells:
+        right = (u + 1) % width != 0 and u + 1 in cells
+        down = u + width in cells
+        edges += right + down
+        blocks += right and down and u + width + 1 in cells
+    if len(cells) - edges + blocks != 1:
+        return False
+    start = next(iter(cells))  # Euler number 1 could be two parts and a hole: count parts
+    seen = {start}
+    stack = [start]
+    while stack:
+        for v in neighbours[stack.pop()]:
+            if v in cells and v not in seen:
+                seen.add(v)
+                stack.append(v)
+    return len(seen) == len(cells)
 
 
 def articulation_points(nodes: set[int], neighbours: list[list[int]]) -> set[int]:
