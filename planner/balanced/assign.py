@@ -230,11 +230,12 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: Walks) -> Routes:
         else:
             break
     routes: Routes = {}
+    free: list[list[bool]] = area.sub_cells.tolist()
     for robot, region in enumerate(regions):
         if travel[robot, region] == 0:
             continue
         goal = {(i // w, i % w) for i in entries[region]}
-        route = sub_cell_route(area, area.starts[robot], goal)
+        route = sub_cell_route(area, area.starts[robot], goal, free)
         if route is not None:
             routes[robot] = route
     return routes

@@ -51,7 +51,7 @@ def balance(state: PartitionState, max_chains: int) -> int:
         top = max(state.load)
         if top <= ideal:
             break
-        biggest = [r for r in range(state.k) if state.load[r] == top]
+        biggest = [r for r, load in enumerate(state.load) if load == top]
         # Whole cells first; splits pin cells for good, so they come last.
         if any(_improve(state, r, WHOLE) for r in biggest) or _relieve(state):
             done += 1
@@ -167,7 +167,7 @@ def _find_chain(state: PartitionState, donor: int, unit: int,
     cost a lookup instead of a pass over the region graph.
     """
     limit = state.load[donor] - unit - 1
-    if min(state.load) > limit:
+    if state.lowest_load() > limit:
         return None  # no region could take it: spare the search its region scans
     dead = _dead_regions(state, unit, limit)
     if donor in dead:

@@ -50,6 +50,7 @@ class PartitionState:
         # balance._takers cache: (robot, unit) -> (region version it was computed at, takers)
         self.takers: dict[tuple[int, int], tuple[int, list[int]]] = {}
         self.version = 0  # bumped by every change (restored by a rollback)
+        self._lowest = (-1, 0)  # (version, min(load)) for lowest_load
         # balance._find_chain: unit -> ((version, limit), regions that cannot reach a taker)
         self.dead_ends: dict[int, tuple[tuple[int, int], set[int]]] = {}
         # reshape.reshape_pairs: (big, small, cells moved, their region versions) that failed
@@ -161,6 +162,12 @@ class PartitionState:
         self._record(lambda: self.set_label(u, old))
 
     # -- queries -------------------------------------------------------------------------
+    def lowest_load(self) -> int:
+        """min(load), cached for this version (failed chain searches ask it again and again)."""
+        if self._lowest[0] != self.version:
+            self._lowest = (self.version, min(self.load))
+        return self._lowest[1]
+
     def pinned(self, u: int) -> bool:
         return u in self.pins
 
