@@ -10,8 +10,9 @@ from hypothesis import strategies as st
 
 from planner.balanced import reshape as reshape_module
 from planner.balanced.assign import _lower_distances
-from planner.balanced.balance import WHOLE, _Offers
+from planner.balanced.balance import WHOLE
 from planner.balanced.regions import _partition_state
+from planner.balanced.relieve import _Offers
 from planner.balanced.relocate import cell_distances
 from planner.balanced.state import (
     RING,

@@ -48,7 +48,7 @@ def _neighbour_pairs(state: PartitionState) -> list[tuple[int, int]]:
     """(smaller, larger) load pairs of regions whose whole cells touch, sorted.
 
     "Smaller" orders by (load, robot). One vectorised pass over all neighbouring cell
-    pairs (numpy), as in balance._Offers: this runs before every re-split attempt.
+    pairs (numpy), as in relieve._Offers: this runs before every re-split attempt.
     """
     label = np.asarray(state.label, dtype=np.int64)
     load = np.asarray(state.load, dtype=np.int64)

@@ -46,7 +46,7 @@ class PartitionState:
         self.pins: dict[int, int] = {}
         self._cut: dict[int, set[int]] = {}
         self._hole_free: dict[int, bool] = {}
-        self.pieces: dict[int, dict[int, list[int]]] = {}  # balance._piece cache
+        self.pieces: dict[int, dict[int, list[int]]] = {}  # relieve._piece cache
         # balance._takers cache: (robot, unit) -> (region version it was computed at, takers)
         self.takers: dict[tuple[int, int], tuple[int, list[int]]] = {}
         self.version = 0  # bumped by every change (restored by a rollback)
