@@ -10,8 +10,9 @@ from hypothesis import strategies as st
 
 from planner.balanced import reshape as reshape_module
 from planner.balanced.assign import _lower_distances
-from planner.balanced.balance import WHOLE, _Offers
+from planner.balanced.balance import WHOLE
 from planner.balanced.regions import _partition_state
+from planner.balanced.relieve import _Offers
 from planner.balanced.relocate import cell_distances
 from planner.balanced.state import (
     RING,
@@ -79,6 +80,48 @@ def test_is_cut_matches_articulation_points_as_the_region_changes(h: int, w: int
         state.release(0, u)
         cut = articulation_points(state.whole[0], state.neighbours)
         assert {v for v in state.whole[0] if state.is_cut(0, v)} == cut
+
+
+def _connected_without_holes(h: int, w: int, nodes: set[int]) -> bool:
+    """Brute force: one 4-connected part, and outside it (the grid padded by a free ring)
+    one 8-connected part, the one round the border."""
+    if not nodes:
+        return False
+    inside = np.zeros((h + 2, w + 2), dtype=bool)
+    for u in nodes:
+        inside[1 + u // w, 1 + u % w] = True
+
+    def parts(mask: np.ndarray, steps: list[tuple[int, int]]) -> int:
+        seen = np.zeros_like(mask)
+        count = 0
+        for r, c in zip(*np.nonzero(mask), strict=True):
+            if seen[r, c]:
+                continue
+            count += 1
+            seen[r, c] = True
+            stack = [(r, c)]
+            while stack:
+                a, b = stack.pop()
+                for dr, dc in steps:
+                    x, y = a + dr, b + dc
+                    if 0 <= x < h + 2 and 0 <= y < w + 2 and mask[x, y] and not seen[x, y]:
+                        seen[x, y] = True
+                        stack.append((x, y))
+        return count
+
+    sides = [(0, 1), (1, 0), (0, -1), (-1, 0)]
+    return parts(inside, sides) == 1 and parts(~inside, sides + list(RING[::2])) == 1
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(1, 7), st.integers(1, 7), st.integers(0, 10_000), st.floats(0.3, 0.95))
+def test_hole_free_matches_a_count_of_parts(h: int, w: int, seed: int, fill: float) -> None:
+    """The Euler-number test is_cut trusts the local test by (PartitionState.hole_free)."""
+    rng = np.random.default_rng(seed)
+    state = PartitionState(np.ones((h, w), dtype=bool), [(0, 0)])
+    for u in np.flatnonzero(rng.random((h, w)) < fill).tolist():
+        state.claim(0, u)
+    assert state.hole_free(0) == _connected_without_holes(h, w, state.whole[0])
 
 
 @pytest.mark.parametrize(("k", "seed"), [(10, 4), (30, 2)])

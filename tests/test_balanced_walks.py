@@ -20,6 +20,7 @@ from planner.balanced import balance as balance_module
 from planner.balanced import balanced_plan, partition
 from planner.balanced.assign import (
     UNREACHABLE,
+    Walks,
     assign_regions,
     assigned_partition,
     entry_routes,
@@ -187,11 +188,11 @@ def test_entry_routes_are_shortest_walks_into_distinct_regions(
     if state is None:
         return
     homes = {(r // 2, c // 2) for r, c in starts}
-    walks = start_distances(area)
+    walks = Walks(area)
     for robot, start in enumerate(starts):  # distances against the breadth-first oracle
         reach = _cell_distances(area.sub_cells, [start])
         w = area.sub_cells.shape[1]
-        assert all(walks[robot, r * w + c] == d for (r, c), d in reach.items())
+        assert all(walks.table[robot, r * w + c] == d for (r, c), d in reach.items())
     routes = entry_routes(area, state, walks)
     ends = []
     for robot, route in routes.items():
@@ -207,6 +208,25 @@ def test_entry_routes_are_shortest_walks_into_distinct_regions(
         assert len(route) - 1 == min(reach[s] for s in entries)
         ends.append(owner)
     assert len(set(ends)) == len(ends)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(instances(max_side=7, max_k=8), st.integers(0, 6))
+def test_walks_searched_to_a_limit_give_the_full_tables_assignment(
+        case: tuple[OccupancyGrid, tuple[SubCell, ...], int], limit: int) -> None:
+    """Start distances searched only up to a limit (widened on demand) against the full
+    table: the same distances within the limit, the same routes (exactness of the fast path)."""
+    grid, starts, seed = case
+    area = work_area(grid, starts)
+    full = start_distances(area)
+    near = start_distances(area, limit)
+    assert ((near == full) | ((full > limit) & (near == UNREACHABLE))).all()
+    state = _partition_state(area, seed, None, None)
+    if state is None:
+        return
+    walks = Walks(area, limit)
+    assert entry_routes(area, state, walks) == entry_routes(area, state, Walks(area))
+    assert walks.limit is None or walks.limit >= limit
 
 
 def test_crowded_corner_is_planned_by_assignment() -> None:

@@ -28,7 +28,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.sparse import coo_matrix, csr_matrix
-from scipy.sparse.csgraph import maximum_bipartite_matching, shortest_path
+from scipy.sparse.csgraph import dijkstra, maximum_bipartite_matching, shortest_path
 
 from planner.balanced.relocate import cell_distances, sub_cell_route
 from planner.balanced.state import PartitionState, articulation_points
@@ -44,6 +44,9 @@ ASSIGN_ROUNDS = 5  # assignment + partition rounds at most (each 0.02-0.04 s of 
 ASSIGN_BUDGET = 600
 UNREACHABLE = 1 << 30  # a walk that cannot be made
 CHUNK = 128  # robots per block of the distance arrays (bounds their temporary copies)
+# Moves the start distances are first searched to (Walks): on the city maps of
+# docs/balanced.md the assignment's bottleneck lay 29-75 moves above the smallest region.
+WALK_LIMIT = 64
 
 Routes = dict[int, tuple[SubCell, ...]]
 MakePartition = Callable[[Sequence[SubCell], Sequence[int] | None], PartitionState | None]
@@ -64,7 +67,7 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int
     if len(seeds) < base.k:
         return None
     state = make([sub_cells_of(base.cell(u))[0] for u in seeds], None)
-    walks = start_distances(area)
+    walks = Walks(area, WALK_LIMIT)
     best: tuple[PartitionState, Routes] | None = None
     walked = UNREACHABLE
     for _ in range(min(ASSIGN_ROUNDS, max(1, ASSIGN_BUDGET // base.k))):
@@ -142,9 +145,30 @@ def _lower_distances(state: PartitionState, dist: dict[int, int], source: int,
     return changed
 
 
-def start_distances(area: WorkArea) -> Int32Array:
+class Walks:
+    """Sub-cell walk lengths from every start, searched only up to ``limit`` moves.
+
+    ``table`` is k x rows*cols (int32), UNREACHABLE where no walk of at most ``limit``
+    moves exists (``limit`` None: no bound). entry_routes widens it when an assignment
+    could need a longer walk, so the assignments are those of the full table: at k = 300
+    the full table took a third of the plan's CPU, while the walks that matter are short.
+    """
+
+    def __init__(self, area: WorkArea, limit: int | None = None) -> None:
+        self.area = area
+        self.limit = limit
+        self.table = start_distances(area, limit)
+
+    def widen(self, limit: int | None) -> None:
+        """Search up to ``limit`` moves (None: all) if that is further than now."""
+        if self.limit is not None and (limit is None or limit > self.limit):
+            self.limit = limit
+            self.table = start_distances(self.area, limit)
+
+
+def start_distances(area: WorkArea, limit: int | None = None) -> Int32Array:
     """Breadth-first sub-cell distances from each start (k x rows*cols, int32; UNREACHABLE:
-    none)."""
+    none, or longer than ``limit`` moves when one is given)."""
     free = area.sub_cells
     h, w = free.shape
     flat = free.ravel()
@@ -161,18 +185,23 @@ def start_distances(area: WorkArea) -> Int32Array:
     # int32, filled in blocks: scipy returns float64 (0.5 GB for k = 1000 on 256 x 256)
     out = np.empty((len(sources), flat.size), dtype=np.int32)
     for at in range(0, len(sources), CHUNK):
-        dist = shortest_path(graph, unweighted=True, indices=sources[at:at + CHUNK])
+        block = sources[at:at + CHUNK]
+        if limit is None:
+            dist = shortest_path(graph, unweighted=True, indices=block)
+        else:  # Dijkstra stops at the limit: a ball round each start, not the whole map
+            dist = dijkstra(graph, unweighted=True, indices=block, limit=limit)
         dist[~np.isfinite(dist)] = UNREACHABLE
         out[at:at + CHUNK] = dist
     return out
 
 
-def entry_routes(area: WorkArea, state: PartitionState, walks: Int32Array) -> Routes:
+def entry_routes(area: WorkArea, state: PartitionState, walks: Walks) -> Routes:
     """Walks (start first) of the robots to the regions ``assign_regions`` gives them.
 
     A robot whose start lies in its region walks nowhere; the others walk to the nearest
     sub-cell of a whole cell of their region that holds no robot's start (where their
-    region will be seeded).
+    region will be seeded). ``walks`` is widened here when the assignment could use a walk
+    beyond its limit.
     """
     w = area.sub_cells.shape[1]
     start_cells = {state.flat(cell_of(s)) for s in area.starts}
@@ -184,6 +213,38 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: Int32Array) -> Ro
         entries.append(entry)
         for sub in _region_subs(state, robot):
             inside[sub[0] * w + sub[1]] = robot
+    sizes = np.asarray([4 * len(state.whole[x]) + sum(len(leaf.subs) for leaf in state.leaves[x])
+                        for x in range(state.k)], dtype=np.int64)
+    while True:
+        travel = _travel(area, state, walks.table, entries, inside)
+        regions, worst = _assignment(travel, sizes)
+        if walks.limit is None:
+            break
+        # A walk beyond the limit costs more than limit + its region's size: if that is
+        # over the bottleneck, no such walk could have been chosen and the assignment is
+        # the full table's (the same bottleneck, the same entries within it).
+        if worst is None:
+            walks.widen(None)
+        elif worst - int(sizes.min()) > walks.limit:
+            walks.widen(worst - int(sizes.min()))
+        else:
+            break
+    routes: Routes = {}
+    free: list[list[bool]] = area.sub_cells.tolist()
+    for robot, region in enumerate(regions):
+        if travel[robot, region] == 0:
+            continue
+        goal = {(i // w, i % w) for i in entries[region]}
+        route = sub_cell_route(area, area.starts[robot], goal, free)
+        if route is not None:
+            routes[robot] = route
+    return routes
+
+
+def _travel(area: WorkArea, state: PartitionState, table: Int32Array, entries: list[list[int]],
+            inside: dict[int, int]) -> IntArray:
+    """Robots x regions: the walk to the region's nearest entry sub-cell (0: starts in it)."""
+    w = area.sub_cells.shape[1]
     travel = np.full((state.k, state.k), UNREACHABLE, dtype=np.int64)
     # nearest entry sub-cell of every region with one, in one gather and one reduction
     regions = [region for region, entry in enumerate(entries) if entry]
@@ -191,22 +252,12 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: Int32Array) -> Ro
         bounds = np.cumsum([0] + [len(entries[region]) for region in regions[:-1]])
         columns = [i for region in regions for i in entries[region]]
         for at in range(0, state.k, CHUNK):  # robots in blocks: the gather is k x n
-            gathered = walks[at:at + CHUNK, columns]
+            gathered = table[at:at + CHUNK, columns]
             travel[at:at + CHUNK, regions] = np.minimum.reduceat(gathered, bounds, axis=1)
     for robot, (r, c) in enumerate(area.starts):
         if r * w + c in inside:
             travel[robot, inside[r * w + c]] = 0
-    sizes = np.asarray([4 * len(state.whole[x]) + sum(len(leaf.subs) for leaf in state.leaves[x])
-                        for x in range(state.k)], dtype=np.int64)
-    routes: Routes = {}
-    for robot, region in enumerate(assign_regions(travel, sizes)):
-        if travel[robot, region] == 0:
-            continue
-        goal = {(i // w, i % w) for i in entries[region]}
-        route = sub_cell_route(area, area.starts[robot], goal)
-        if route is not None:
-            routes[robot] = route
-    return routes
+    return travel
 
 
 def assign_regions(travel: IntArray, sizes: IntArray) -> list[int]:
@@ -216,21 +267,34 @@ def assign_regions(travel: IntArray, sizes: IntArray) -> list[int]:
     bipartite matching test (scipy maximum_bipartite_matching); among assignments within it,
     scipy's linear_sum_assignment picks the least total travel.
     """
+    return _assignment(travel, sizes)[0]
+
+
+def _assignment(travel: IntArray, sizes: IntArray) -> tuple[list[int], int | None]:
+    """assign_regions and its bottleneck value (None: no assignment makes every walk)."""
     cost = travel + sizes[None, :]
     values = np.unique(cost[travel < UNREACHABLE])
     if values.size == 0:
-        return list(range(travel.shape[0]))  # no walk can be made: everyone stays
+        return list(range(travel.shape[0])), None  # no walk can be made: everyone stays
     lo, hi = 0, len(values) - 1
+    feasible = False  # whether values[hi] was seen to allow a perfect assignment
     while lo < hi:
         mid = (lo + hi) // 2
-        allowed = csr_matrix((cost <= values[mid]) & (travel < UNREACHABLE))
-        if (maximum_bipartite_matching(allowed, perm_type="column") >= 0).all():
-            hi = mid
+        if _perfect(cost <= values[mid], travel):
+            hi, feasible = mid, True
         else:
             lo = mid + 1
+    if not feasible:
+        feasible = _perfect(cost <= values[lo], travel)
     masked = np.where((cost <= values[lo]) & (travel < UNREACHABLE), travel, UNREACHABLE)
     _, regions = linear_sum_assignment(masked)
-    return [int(x) for x in regions]
+    return [int(x) for x in regions], int(values[lo]) if feasible else None
+
+
+def _perfect(within: np.ndarray, travel: IntArray) -> bool:
+    """Whether every robot can have its own region among the allowed (walkable) pairs."""
+    allowed = csr_matrix(within & (travel < UNREACHABLE))
+    return bool((maximum_bipartite_matching(allowed, perm_type="column") >= 0).all())
 
 
 def _region_subs(state: PartitionState, robot: int) -> list[SubCell]:

@@ -7,7 +7,7 @@ that is smaller by more than the unit (breadth-first search over the region grap
 chain first); every middle region gives one and gets one, so only the ends change. A donor
 never gives a pinned cell (a start or an anchor) or an articulation cell of its whole cells,
 so regions stay connected. When no chain helps, a region hands a neighbour a cell together
-with whatever that cell alone connects (_relieve), or two neighbours are re-split
+with whatever that cell alone connects (relieve.py), or two neighbours are re-split
 (reshape.py); split transfers come last because they pin cells for good. Every move lowers
 the sum of squared loads, so the loop ends; a cap bounds it anyway.
 """
@@ -18,8 +18,7 @@ import itertools
 from collections import deque
 from typing import NamedTuple
 
-import numpy as np
-
+from planner.balanced.relieve import relieve
 from planner.balanced.reshape import reshape_pairs
 from planner.balanced.seeds import near_half
 from planner.balanced.state import SHARED, PartitionState
@@ -30,7 +29,6 @@ _RETRIES = 4  # chains tried per donor when one fails on execution
 LOCAL_TEST_SIZE = 64  # regions larger than this try the local cut test first
 RESHAPES_PER_ROBOT = 2  # bound the costliest move (see reshape.py): how often,
 RESHAPE_PAIRS = 8  # and how many pairs each time
-BATCH_FROM = 48  # robots above which _relieve makes many disjoint hand-overs per scan
 
 
 class _Move(NamedTuple):  # a tuple: built thousands of times per plan
@@ -51,9 +49,9 @@ def balance(state: PartitionState, max_chains: int) -> int:
         top = max(state.load)
         if top <= ideal:
             break
-        biggest = [r for r in range(state.k) if state.load[r] == top]
+        biggest = [r for r, load in enumerate(state.load) if load == top]
         # Whole cells first; splits pin cells for good, so they come last.
-        if any(_improve(state, r, WHOLE) for r in biggest) or _relieve(state):
+        if any(_improve(state, r, WHOLE) for r in biggest) or relieve(state):
             done += 1
             continue
         if reshapes < RESHAPES_PER_ROBOT * state.k and reshape_pairs(state, RESHAPE_PAIRS):
@@ -167,7 +165,7 @@ def _find_chain(state: PartitionState, donor: int, unit: int,
     cost a lookup instead of a pass over the region graph.
     """
     limit = state.load[donor] - unit - 1
-    if min(state.load) > limit:
+    if state.lowest_load() > limit:
         return None  # no region could take it: spare the search its region scans
     dead = _dead_regions(state, unit, limit)
     if donor in dead:
@@ -225,6 +223,11 @@ def _taker_scan(state: PartitionState, giver: int, unit: int) -> list[int]:
         return sorted({state.label[m.anchor] for m in _moves(state, giver, None, unit)})
     label, neighbours, pins = state.label, state.neighbours, state.pins
     found: set[int] = set()
+    # Cells the local test cannot clear wait until the others are done: most add no taker
+    # by then, and the region's cut cells (a pass over it, most of a scan's cost at
+    # k = 300) are computed only if one still would. The same set either way; the cut
+    # cells cached or not decide nothing for a region _exact takes without them.
+    unsure: list[tuple[int, list[int]]] = []
     for u in whole:
         if u in pins:
             continue
@@ -233,7 +236,18 @@ def _taker_scan(state: PartitionState, giver: int, unit: int) -> list[int]:
                      if (y := label[v]) >= 0 and y != giver and y not in found]
         else:
             fresh = [y for y in _takers_of(state, giver, unit, u) if y not in found]
-        if fresh and not state.is_cut(giver, u):
+        if not fresh:
+            continue
+        cut = state.cached_cut_cells(giver)
+        if cut is not None:
+            if u not in cut:
+                found.update(fresh)
+        elif state.locally_removable(giver, u):
+            found.update(fresh)
+        else:
+            unsure.append((u, fresh))
+    for u, fresh in unsure:
+        if any(y not in found for y in fresh) and not state.is_cut(giver, u):
             found.update(fresh)
     return sorted(found)
 
@@ -259,6 +273,14 @@ def _execute(state: PartitionState, chain: list[int], unit: int) -> tuple[int, i
     """Transfer along ``chain`` from its far end back; None, or the hop that failed."""
     state.begin()
     for giver, taker in reversed(list(itertools.pairwise(chain))):
+        if unit == WHOLE and len(state.whole[giver]) >= 2 and _exact(state, giver):
+            cell = _best_whole_cell(state, giver, taker)
+            if cell < 0:
+                state.rollback()
+                return (giver, taker)
+            state.release(giver, cell)
+            state.claim(taker, cell)
+            continue
         moves = _moves(state, giver, taker, unit)
         if not moves:
             state.rollback()
@@ -272,6 +294,26 @@ def _execute(state: PartitionState, chain: list[int], unit: int) -> tuple[int, i
             _split(state, giver, taker, move)
     state.commit()
     return None
+
+
+def _best_whole_cell(state: PartitionState, giver: int, taker: int) -> int:
+    """The cell _execute's max over _moves(state, giver, taker, WHOLE) picks (-1: none).
+
+    One pass, the same cut tests in the same order: the moves of a cell differ only in
+    their anchor, so the first cell of the best contact wins, as there.
+    """
+    label, neighbours, pins = state.label, state.neighbours, state.pins
+    best, best_gain = -1, 0
+    for u in state.whole[giver]:
+        if u in pins:
+            continue
+        around = [label[v] for v in neighbours[u]]
+        if taker not in around or state.is_cut(giver, u):
+            continue
+        gain = around.count(taker) - around.count(giver)
+        if best < 0 or gain > best_gain:
+            best, best_gain = u, gain
+    return best
 
 
 def _contact(state: PartitionState, u: int, region: int) -> int:
@@ -291,146 +333,3 @@ def _split(state: PartitionState, giver: int, taker: int, move: _Move) -> None:
         side = (a[0] - cell[0], a[1] - cell[1])
         state.add_leaf(robot, LeafCell(cell=cell, anchor=a, subs=near_half(cell, side)))
         state.pin(anchor)
-
-
-def _relieve(state: PartitionState) -> bool:
-    """Best single hand-over of a boundary cell, with what it alone holds to its region.
-
-    Giving an articulation cell also gives the part of the region it cuts off (when that
-    part holds no pinned cell): this is how a region sheds a one-cell-wide strip that the
-    chains cannot pass a single cell through. Taken only when it lowers the sum of squared
-    loads, so the balancing loop still terminates. With more than BATCH_FROM robots, the
-    best hand-over of every giver is found in the one scan and as many as touch disjoint
-    regions are made (best first): a hand-over depends only on its two regions, so each
-    still lowers the sum, and a scan of the whole boundary no longer buys a single cell.
-    """
-    if state.k > BATCH_FROM:
-        return _relieve_many(state)
-    best: tuple[int, int, int, list[int]] | None = None
-    offers = _Offers(state)
-    low = min(state.load)
-    for giver in sorted(offers.givers, key=lambda r: (-state.load[r], r)):
-        spread = state.load[giver] - low
-        if best is not None and spread * spread <= 4 * best[0]:
-            break  # gain = amount * gap <= (spread / 2) ** 2, and givers come largest first
-        if len(state.whole[giver]) < 2:
-            continue
-        cut = state.cut_cells(giver)
-        reach = state.load[giver] - offers.lowest_taker[giver]
-        if best is not None and reach * reach <= 4 * best[0]:
-            continue  # the bound above with this giver's own takers (k = 1000: most givers)
-        found = _best_offer(state, offers, giver, cut, 0 if best is None else best[0])
-        if found is not None:
-            best = (found[0], giver, found[1], found[2])
-    if best is None:
-        return False
-    _, giver, taker, piece = best
-    _hand_over(state, giver, taker, piece)
-    return True
-
-
-def _relieve_many(state: PartitionState) -> bool:
-    offers = _Offers(state)
-    found = []
-    for giver in offers.givers:
-        if len(state.whole[giver]) < 2:
-            continue
-        offer = _best_offer(state, offers, giver, state.cut_cells(giver), 0)
-        if offer is not None:
-            found.append((-offer[0], giver, offer[1], offer[2]))
-    used: set[int] = set()
-    for _, giver, taker, piece in sorted(found, key=lambda f: (f[0], f[1])):
-        if giver in used or taker in used:
-            continue
-        used.update((giver, taker))
-        _hand_over(state, giver, taker, piece)
-    return bool(used)
-
-
-def _best_offer(state: PartitionState, offers: _Offers, giver: int, cut: set[int],
-                floor: int) -> tuple[int, int, list[int]] | None:
-    """(gain, taker, piece) of ``giver``'s best hand-over with a gain above ``floor``."""
-    load = state.load
-    best: tuple[int, int, list[int]] | None = None
-    last, piece, amount = -1, [], 0
-    for u, y in offers.of(giver):  # by cell, then taker: the first of equal gains wins
-        if u != last:
-            last = u
-            piece = [] if state.pinned(u) else _piece(state, giver, u) if u in cut else [u]
-            amount = WHOLE * len(piece)
-        if not piece:
-            continue
-        gap = load[giver] - load[y] - amount
-        gain = amount * gap
-        if gap > 0 and gain > floor and (best is None or gain > best[0]):
-            best = (gain, y, piece)
-    return best
-
-
-def _hand_over(state: PartitionState, giver: int, taker: int, piece: list[int]) -> None:
-    for u in piece:
-        state.release(giver, u)
-        state.claim(taker, u)
-
-
-class _Offers:
-    """Giver -> (whole cell, neighbouring region smaller by more than a cell) pairs.
-
-    One vectorised pass over all neighbouring cell pairs (numpy) instead of a Python scan of
-    every region's cells: the relieve move runs hundreds of times on a stalled partition.
-    The per-giver dictionaries are built only for the givers _relieve gets to (it stops
-    after the largest few).
-    """
-
-    def __init__(self, state: PartitionState) -> None:
-        label = np.asarray(state.label, dtype=np.int64)
-        load = np.asarray(state.load, dtype=np.int64)
-        own = label[state.edge_src]
-        other = label[state.edge_dst]
-        mask = (own >= 0) & (other >= 0) & (own != other)
-        mask[mask] &= load[other[mask]] + WHOLE < load[own[mask]]
-        own = own[mask]
-        # sorted by giver, cell, taker, so that of() slices instead of masking all pairs and
-        # building dictionaries: with k = 1000 it runs 10^5 times a plan
-        cell, other = state.edge_src[mask], other[mask]
-        order = np.lexsort((other, cell, own))
-        self._cell = cell[order]
-        self._other = other[order]
-        own = own[order]
-        givers, first = np.unique(own, return_index=True)
-        self.givers: list[int] = givers.tolist()
-        ends = [*first[1:].tolist(), len(own)] if len(own) else []
-        lowest = np.minimum.reduceat(load[self._other], first) if len(own) else first
-        self.lowest_taker: dict[int, int] = dict(zip(self.givers, lowest.tolist(), strict=True))
-        self._span = dict(zip(self.givers, zip(first.tolist(), ends, strict=True), strict=True))
-
-    def of(self, giver: int) -> list[tuple[int, int]]:
-        """(cell, taker) pairs of ``giver``, sorted (a pair may repeat)."""
-        lo, hi = self._span.get(giver, (0, 0))
-        return list(zip(self._cell[lo:hi].tolist(), self._other[lo:hi].tolist(), strict=True))
-
-
-def _piece(state: PartitionState, robot: int, u: int) -> list[int]:
-    """``u`` and the cells only it connects to the region's pinned cells ([] if any pinned)."""
-    cache = state.pieces.setdefault(robot, {})
-    if u not in cache:
-        cache[u] = _find_piece(state, robot, u)
-    return cache[u]
-
-
-def _find_piece(state: PartitionState, robot: int, u: int) -> list[int]:
-    whole = state.whole[robot]
-    roots = [v for v in whole if state.pinned(v)]
-    if not roots or u in roots:
-        return []
-    seen = {u, roots[0]}
-    stack = [roots[0]]
-    while stack:
-        a = stack.pop()
-        for b in state.neighbours[a]:
-            if b in whole and b not in seen:
-                seen.add(b)
-                stack.append(b)
-    if not all(v in seen for v in roots):
-        return []
-    return [u, *(v for v in whole if v not in seen)]

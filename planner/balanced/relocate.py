@@ -47,6 +47,7 @@ def relocation_routes(area: WorkArea, state: PartitionState, robots: Iterable[in
            for r, s in enumerate(area.starts if seeds is None else seeds)}
     avoid |= set(now.values()) | {state.flat(cell_of(s)) for s in area.starts}
     routes: dict[int, tuple[SubCell, ...]] = {}
+    free: list[list[bool]] = area.sub_cells.tolist()
     for robot in robots:
         home = state.flat(cell_of(area.starts[robot]))
         others = [u for r, u in now.items() if r != robot]
@@ -55,7 +56,8 @@ def relocation_routes(area: WorkArea, state: PartitionState, robots: Iterable[in
         best = max(near, key=lambda u: (u not in avoid, room.get(u, 0), -near[u], -u))
         if best in avoid or room.get(best, 0) <= room.get(home, 0):
             continue
-        route = sub_cell_route(area, area.starts[robot], set(sub_cells_of(state.cell(best))))
+        route = sub_cell_route(area, area.starts[robot], set(sub_cells_of(state.cell(best))),
+                               free)
         if route is None:
             continue
         routes[robot] = route
@@ -80,11 +82,16 @@ def cell_distances(state: PartitionState, sources: Sequence[int], cells: set[int
     return dist
 
 
-def sub_cell_route(area: WorkArea, start: SubCell, goal: set[SubCell]
-                   ) -> tuple[SubCell, ...] | None:
-    """A shortest 4-connected walk over the area's sub-cells from start into ``goal``."""
+def sub_cell_route(area: WorkArea, start: SubCell, goal: set[SubCell],
+                   free: list[list[bool]] | None = None) -> tuple[SubCell, ...] | None:
+    """A shortest 4-connected walk over the area's sub-cells from start into ``goal``.
+
+    ``free``: ``area.sub_cells.tolist()``, for callers that route many robots (the
+    conversion costs more than a short search on a large map).
+    """
     h, w = area.sub_cells.shape
-    free: list[list[bool]] = area.sub_cells.tolist()  # Python lists: numpy element access is slow
+    if free is None:
+        free = area.sub_cells.tolist()  # Python lists: numpy element access is slow
     parent: dict[SubCell, SubCell] = {start: start}
     queue = deque([start])
     while queue:

@@ -32,8 +32,15 @@ def reshape_pairs(state: PartitionState, tries: int) -> bool:
         if gap <= WHOLE:
             break
         moved = max(1, gap // (2 * WHOLE))
+        # A re-split depends only on the pair's cells, pins and sizes, all of which bump
+        # the pair's region versions: one that failed fails again until they change (on a
+        # stalled partition the same pairs come up at every try).
+        key = (big, small, moved, state.region_version[big], state.region_version[small])
+        if key in state.failed_resplits:
+            continue
         if _resplit(state, big, small, moved):
             return True
+        state.failed_resplits.add(key)
     return False
 
 
@@ -41,7 +48,7 @@ def _neighbour_pairs(state: PartitionState) -> list[tuple[int, int]]:
     """(smaller, larger) load pairs of regions whose whole cells touch, sorted.
 
     "Smaller" orders by (load, robot). One vectorised pass over all neighbouring cell
-    pairs (numpy), as in balance._Offers: this runs before every re-split attempt.
+    pairs (numpy), as in relieve._Offers: this runs before every re-split attempt.
     """
     label = np.asarray(state.label, dtype=np.int64)
     load = np.asarray(state.load, dtype=np.int64)
@@ -96,17 +103,26 @@ def _ball(state: PartitionState, union: set[int], grower: int, other: int,
     rest = union - ball
     # cells of rest next to the ball that it may take, kept up to date as the ball grows
     around = {v for v in state.neighbours[source] if v in rest and v not in blocked}
+    # Frontier cells that failed stay failed: as rest shrinks, what v cuts off from keep
+    # only grows (minus what the ball took), so the ball plus it stays over size, and a
+    # blocked cell in it stays there (blocked cells never leave rest). Skipping them saves
+    # the search round v that would fail again (most of a re-split's cost at k = 300).
+    failed: set[int] = set()
     while len(ball) < size:
         for v in sorted(around, key=lambda v: (not state.pinned(v), rank[v])):
+            if v in failed:
+                continue
             plain = state.locally_removable_from(rest, v) or not splits(rest, state.neighbours, v)
             swallow = {v} if plain else _cut_off(state, rest, v, keep, blocked)
-            if swallow and len(ball) + len(swallow) <= size:
-                ball |= swallow
-                rest -= swallow
-                around -= swallow
-                around.update(x for u in swallow for x in state.neighbours[u]
-                              if x in rest and x not in blocked)
-                break
+            if not swallow or len(ball) + len(swallow) > size:
+                failed.add(v)
+                continue
+            ball |= swallow
+            rest -= swallow
+            around -= swallow
+            around.update(x for u in swallow for x in state.neighbours[u]
+                          if x in rest and x not in blocked)
+            break
         else:
             return None
     return ball if all(p in ball for p in pins) else None

@@ -45,12 +45,16 @@ class PartitionState:
         self.load: list[int] = list(offsets) if offsets is not None else [0] * self.k
         self.pins: dict[int, int] = {}
         self._cut: dict[int, set[int]] = {}
-        self.pieces: dict[int, dict[int, list[int]]] = {}  # balance._piece cache
+        self._hole_free: dict[int, bool] = {}
+        self.pieces: dict[int, dict[int, list[int]]] = {}  # relieve._piece cache
         # balance._takers cache: (robot, unit) -> (region version it was computed at, takers)
         self.takers: dict[tuple[int, int], tuple[int, list[int]]] = {}
         self.version = 0  # bumped by every change (restored by a rollback)
+        self._lowest = (-1, 0)  # (version, min(load)) for lowest_load
         # balance._find_chain: unit -> ((version, limit), regions that cannot reach a taker)
         self.dead_ends: dict[int, tuple[tuple[int, int], set[int]]] = {}
+        # reshape.reshape_pairs: (big, small, cells moved, their region versions) that failed
+        self.failed_resplits: set[tuple[int, int, int, int, int]] = set()
         self._begun = 0
         # per region: bumped when its cells, its pins or the owner of a cell next to it change
         # (all that the moves out of a region depend on)
@@ -109,6 +113,7 @@ class PartitionState:
         self.whole[robot].add(u)
         self.load[robot] += 4
         self._cut.pop(robot, None)
+        self._hole_free.pop(robot, None)
         self.pieces.pop(robot, None)
         self.version += 1
         if self._log is not None:  # the undo closure costs more than the change itself
@@ -120,6 +125,7 @@ class PartitionState:
         self._touch(u, robot)
         self.load[robot] -= 4
         self._cut.pop(robot, None)
+        self._hole_free.pop(robot, None)
         self.pieces.pop(robot, None)
         self.version += 1
         if self._log is not None:
@@ -156,11 +162,21 @@ class PartitionState:
         self._record(lambda: self.set_label(u, old))
 
     # -- queries -------------------------------------------------------------------------
+    def lowest_load(self) -> int:
+        """min(load), cached for this version (failed chain searches ask it again and again)."""
+        if self._lowest[0] != self.version:
+            self._lowest = (self.version, min(self.load))
+        return self._lowest[1]
+
     def pinned(self, u: int) -> bool:
         return u in self.pins
 
     def has_cut_cells(self, robot: int) -> bool:
         return robot in self._cut
+
+    def cached_cut_cells(self, robot: int) -> set[int] | None:
+        """The region's cut cells if known (not changed since computed), else None."""
+        return self._cut.get(robot)
 
     def cut_cells(self, robot: int) -> set[int]:
         """Articulation cells of the region's whole cells (cached until the region changes)."""
@@ -180,7 +196,24 @@ class PartitionState:
         cut = self._cut.get(robot)
         if cut is not None:
             return u in cut
-        return not self.locally_removable(robot, u) and u in self.cut_cells(robot)
+        if self.locally_removable(robot, u):
+            return False
+        # Around no hole the local test is exact: two region cells of u's ring that no run
+        # of the ring joins, joined by a path avoiding u, would close a loop round a ring
+        # cell outside the region. That spares a pass over the region (Hopcroft-Tarjan).
+        return (len(self.whole[robot]) > 1 and self.hole_free(robot)) or u in self.cut_cells(robot)
+
+    def hole_free(self, robot: int) -> bool:
+        """Whether the region's whole cells are connected and enclose no other cell.
+
+        Euler number V - E + F (cells, 4-adjacent pairs, 2 x 2 blocks) of a 4-connected
+        set is 1 minus its holes; cached until the region changes.
+        """
+        known = self._hole_free.get(robot)
+        if known is None:
+            known = _hole_free(self.whole[robot], self.neighbours, self.width)
+            self._hole_free[robot] = known
+        return known
 
     def locally_removable(self, robot: int, u: int) -> bool:
         """Whether ``u``'s region neighbours stay linked around it (then ``u`` is no cut).
@@ -212,6 +245,29 @@ class PartitionState:
             regions.append(Region(robot=robot, start=self.starts[robot], cells=cells,
                                   leaves=tuple(self.leaves[robot])))
         return Partition(regions=tuple(regions), transfers=transfers)
+
+
+def _hole_free(cells: set[int], neighbours: list[list[int]], width: int) -> bool:
+    """PartitionState.hole_free for one set of cells (flat indices, row width ``width``)."""
+    if not cells:
+        return False
+    edges = blocks = 0
+    for u in cells:
+        right = (u + 1) % width != 0 and u + 1 in cells
+        down = u + width in cells
+        edges += right + down
+        blocks += right and down and u + width + 1 in cells
+    if len(cells) - edges + blocks != 1:
+        return False
+    start = next(iter(cells))  # Euler number 1 could be two parts and a hole: count parts
+    seen = {start}
+    stack = [start]
+    while stack:
+        for v in neighbours[stack.pop()]:
+            if v in cells and v not in seen:
+                seen.add(v)
+                stack.append(v)
+    return len(seen) == len(cells)
 
 
 def articulation_points(nodes: set[int], neighbours: list[list[int]]) -> set[int]:
