@@ -105,23 +105,25 @@ def tcp_ports(pid: int, remote_port: int) -> list[int]:
     return sorted(set(ports))
 
 
+def _rule(action: str, direction: str, port: int) -> subprocess.CompletedProcess[str]:
+    # -w: trials running side by side take the xtables lock in turn instead of failing.
+    return subprocess.run(["iptables", "-w", "5", action, "INPUT", "-i", "lo", "-p", "tcp",
+                           direction, str(port), "-j", "DROP"],
+                          capture_output=True, text=True, check=False)
+
+
 def _iptables(action: str, port: int) -> None:
     """Insert (-I) or delete (-D) the two DROP rules of one local port on lo."""
-    done_directions: list[str] = []
+    done: list[str] = []
     for direction in ("--sport", "--dport"):
-        # -w: trials running side by side take the xtables lock in turn instead of failing.
-        done = subprocess.run(["iptables", "-w", "5", action, "INPUT", "-i", "lo", "-p", "tcp",
-                               direction, str(port), "-j", "DROP"],
-                              capture_output=True, text=True, check=False)
-        if done.returncode != 0:
+        result = _rule(action, direction, port)
+        if result.returncode != 0:
             if action == "-I":  # no half partition left behind
-                for undo in done_directions:
-                    subprocess.run(["iptables", "-w", "5", "-D", "INPUT", "-i", "lo", "-p",
-                                    "tcp", undo, str(port), "-j", "DROP"],
-                                   capture_output=True, check=False)
+                for undo in done:
+                    _rule("-D", undo, port)
             raise InjectionError(f"iptables {action} port {port}: "
-                                 f"{done.stderr.strip() or done.returncode}")
-        done_directions.append(direction)
+                                 f"{result.stderr.strip() or result.returncode}")
+        done.append(direction)
 
 
 def _heal(ports: list[int]) -> str:
