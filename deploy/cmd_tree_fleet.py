@@ -18,7 +18,6 @@ process failed, the run stalled, or the results differ); 2 usage or start-up err
 from __future__ import annotations
 
 import argparse
-import asyncio
 import json
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from bus.config import ConnectionSettings
 from deploy import security
 from deploy.errors import UsageError
 from deploy.fleet import RunDir, check_port_free, default_run_dir, unique_mission
+from deploy.monitor.types import RecorderLink
 from deploy.settings import KillOrder
 from deploy.supervisor import run_recorded
 from deploy.tree_fleet import TreeFleet, TreeFleetOptions, free_endpoint
@@ -104,9 +104,9 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda _text: None) if args.json else (lambda text: print(text, flush=True))
     connection = secured.observer(ConnectionSettings(
         connect=(options.endpoint or "",), mission=mission, lease_ms=options.lease_ms))
-    recording = None if args.record is None else asyncio.Event()
-    outcome = run_recorded(TreeFleet(options, say, recording).run(), connection, args.record,
-                           "tree-fleet", recording=recording)
+    link = None if args.record is None else RecorderLink()
+    outcome = run_recorded(TreeFleet(options, say, link).run(), connection, args.record,
+                           "tree-fleet", link=link)
     lockstep, lockstep_cuts = lockstep_run(tree, args.robots, args.algo,
                                            outcome.observed.deaths)
     summary = summarize(tree, lockstep, outcome.observed, ok=outcome.ok,

@@ -31,6 +31,7 @@ from deploy.fleet import (
     stop_children,
     wait_ready,
 )
+from deploy.monitor.types import RecorderLink
 from deploy.settings import KillOrder
 
 T = TypeVar("T")
@@ -141,17 +142,17 @@ class Supervisor:
 
 def run_recorded(main: Awaitable[T], connection: ConnectionSettings, record: Path | None,
                  source: str, record_mcap: Path | None = None,
-                 recording: asyncio.Event | None = None) -> T:
+                 link: RecorderLink | None = None) -> T:
     """Run a launcher's coroutine to its end, with every message of its mission recorded
     to ``record`` (JSON Lines, for mstc replay and mstc report) and/or ``record_mcap`` (MCAP,
     docs/robotics.md) when given; ``source`` (the command) goes into the recording's header.
-    ``recording`` is set once the recorder subscribes (a launcher whose messages no cache can
-    give back waits for it before starting its robots)."""
+    ``link`` tells the launcher when the recorder listens and what it has written (a launcher
+    whose messages no cache can give back waits for both)."""
     if record is None and record_mcap is None:
         return asyncio.run(_awaited(main))
     from deploy.monitor.app import recorded  # the recorder pulls in the rich view
 
-    return asyncio.run(recorded(main, connection, record, source, record_mcap, recording))
+    return asyncio.run(recorded(main, connection, record, source, record_mcap, link))
 
 
 async def _awaited(main: Awaitable[T]) -> T:

@@ -28,6 +28,7 @@ from bus.messages import MissionStatus, RadioStats, TreeReport
 from bus.router import READY_MARK as ROUTER_READY
 from deploy.errors import FleetError
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv
+from deploy.monitor.types import RecorderLink
 from deploy.security import FleetSecurity
 from deploy.settings import KillOrder
 from deploy.supervisor import KillSchedule, Supervisor
@@ -38,6 +39,9 @@ from simhw.radio import READY_MARK as RADIO_READY
 TICK_S = 0.1
 SETTLE_S = 2.0
 RECORDER_WAIT_S = 20.0  # as long as the router may take to say it is ready
+# How long the router stays up for a recorder that lags behind the launcher at the end (it
+# shares the launcher's loop and writes every message to disk: under load it falls behind).
+RECORDER_CATCH_UP_S = 20.0
 
 
 @dataclass(frozen=True)
@@ -78,13 +82,14 @@ class TreeFleet:
     """Starts, watches and stops one tree-coverage fleet."""
 
     def __init__(self, options: TreeFleetOptions, say: Callable[[str], None],
-                 recording: asyncio.Event | None = None) -> None:
+                 recorder: RecorderLink | None = None) -> None:
         self.options = options
         self.say = say
-        # Set by the launcher's recorder once it has subscribed. Tree reports have no
-        # publisher cache (the radio relays them), so a recorder that joined after the first
-        # step would miss it for good: the robots start only once it listens.
-        self.recording = recording
+        # The launcher's recorder. Tree reports have no publisher cache (the radio relays
+        # them), so a recorder that joined after the first step, or that the router left
+        # before it caught up, would miss reports for good: the robots start only once it
+        # listens, and the router stops only once it has written every report we heard.
+        self.recorder = recorder
         self.endpoint = options.endpoint or free_endpoint()
         self.run_dir = RunDir(options.run_dir).create()
         self.supervisor = Supervisor(self.run_dir)
@@ -120,10 +125,10 @@ class TreeFleet:
             "router", "--listen", self.endpoint, "--lease-ms", str(o.lease_ms),
             "--exit-with-parent", *self.security.child_args()))
         await self.supervisor.wait_ready(self.router, ROUTER_READY, 20.0)
-        if self.recording is not None:
+        if self.recorder is not None:
             try:
                 async with asyncio.timeout(RECORDER_WAIT_S):
-                    await self.recording.wait()
+                    await self.recorder.subscribed.wait()
             except TimeoutError:
                 raise FleetError(f"the recorder did not connect to {self.endpoint} within "
                                  f"{RECORDER_WAIT_S:g} s") from None
@@ -138,11 +143,26 @@ class TreeFleet:
             self._announce(bus)  # once more: a short run may end before a recorder joined
             replies = await bus.query(keys.tree_radio(o.mission), None, RadioStats,
                                       timeout=2.0)
+            await self._until_recorded()
         radio = replies[0].msg if replies else None
         mission = None if self.covered_at is None or self.first_report is None else \
             self.covered_at - self.first_report
         return TreeFleetOutcome(ok, message, self.observer.run(), radio,
                                 time.monotonic() - self.t0, mission)
+
+    async def _until_recorded(self) -> None:
+        """Keep the router up until the recorder has written every outbox report this
+        launcher heard (both hear the same router), or say what the recording lacks."""
+        if self.recorder is None:
+            return
+        heard, family = self.observer.transmissions, keys.kind_of(keys.tree_outbox("m", 0))
+        deadline = time.monotonic() + RECORDER_CATCH_UP_S
+        while self.recorder.written[family] < heard and time.monotonic() < deadline:
+            await asyncio.sleep(TICK_S)
+        written = self.recorder.written[family]
+        if written < heard:
+            self.say(f"the recording has {written} of the {heard} reports the launcher heard "
+                     f"(it did not catch up within {RECORDER_CATCH_UP_S:g} s)")
 
     def _on_transmission(self, report: TreeReport) -> None:
         now = time.monotonic()

@@ -19,8 +19,10 @@ from waiting import wait_until
 
 from bus import keys
 from bus.bridge import Bus
+from bus.config import ConnectionSettings
 from bus.messages import RadioStats, TreeReport
 from deploy.fleet import ProcessRecord, is_running
+from deploy.monitor.types import RecorderLink
 from planner.treecover.failures import run_with_failures
 from planner.treecover.sim import run_coverage
 from planner.treecover.trees import tree_from_spec
@@ -268,7 +270,51 @@ async def test_no_robot_starts_before_the_recorder_listens(tmp_path: Path,
     monkeypatch.setattr(tree_fleet, "RECORDER_WAIT_S", 1.0)
     options = tree_fleet.TreeFleetOptions(tree="perfect:N=2,H=3", robots=2, algo="cocta",
                                           run_dir=tmp_path / "run", mission="rec-wait")
-    fleet = tree_fleet.TreeFleet(options, lambda _line: None, recording=asyncio.Event())
+    fleet = tree_fleet.TreeFleet(options, lambda _line: None, RecorderLink())
     with pytest.raises(FleetError, match="recorder did not connect"):
         await fleet.run()
     assert fleet.router is not None and fleet.radio is None and fleet.agents == []
+
+
+async def test_the_router_stays_up_until_a_lagging_recorder_has_every_report(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # A recorder shares the launcher's loop and writes every message to disk: under load it
+    # fell behind and the launcher stopped the router before it caught up (seen in a fresh
+    # clone's run: "visited 951 of 1023 nodes" in the recording, the launcher's verdict ok).
+    # Here the recorder takes in at most three records per tick, so it lags for sure.
+    from deploy import tree_fleet
+    from deploy.monitor import live
+    from deploy.monitor.app import recorded
+    from deploy.monitor.recorder import read_recording
+
+    drain = live.LiveFeed.drain
+    monkeypatch.setattr(live.LiveFeed, "drain", lambda feed, limit=3: drain(feed, min(limit, 3)))
+    options = tree_fleet.TreeFleetOptions(
+        tree="perfect:N=2,H=4", robots=2, algo="cocta", run_dir=tmp_path / "run",
+        mission="rec-lag", endpoint=tree_fleet.free_endpoint())
+    link, path, said = RecorderLink(), tmp_path / "lag.jsonl", []
+    connection = ConnectionSettings(connect=(options.endpoint or "",), mission=options.mission)
+    outcome = await recorded(tree_fleet.TreeFleet(options, said.append, link).run(), connection,
+                             path, "tree-fleet", link=link)
+    assert outcome.ok, outcome.message
+    outboxes = [r for r in read_recording(path).records
+                if isinstance(r.msg, TreeReport) and keys.kind_of(r.key) == "tree/outbox"]
+    assert outcome.observed.transmissions > 3 * 10  # more than the recorder takes in a second
+    assert len(outboxes) == outcome.observed.transmissions, said[-3:]
+    assert not any("the recording has" in line for line in said)
+
+
+async def test_a_recorder_that_never_catches_up_is_named_not_waited_for_ever(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from deploy import tree_fleet
+
+    monkeypatch.setattr(tree_fleet, "RECORDER_CATCH_UP_S", 0.5)
+    options = tree_fleet.TreeFleetOptions(tree="perfect:N=2,H=3", robots=2, algo="cocta",
+                                          run_dir=tmp_path / "run", mission="rec-stuck")
+    link, said = RecorderLink(), []
+    link.subscribed.set()  # listens, but writes nothing
+    outcome = await tree_fleet.TreeFleet(options, said.append, link).run()
+    assert outcome.ok, outcome.message
+    heard = outcome.observed.transmissions
+    assert heard > 0
+    assert f"the recording has 0 of the {heard} reports the launcher heard" in "\n".join(said)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import time
+from collections import Counter
 from collections.abc import Awaitable, Callable, Iterable
 from pathlib import Path
 from typing import Protocol, TypeVar
@@ -12,6 +13,7 @@ from typing import Protocol, TypeVar
 from rich.console import Console, RenderableType
 from rich.live import Live
 
+from bus import keys
 from bus.bridge import Bus
 from bus.config import ConnectionSettings, open_session_async
 from bus.messages import SCHEMA_VERSION
@@ -21,7 +23,14 @@ from deploy.monitor.live import LiveFeed, poll
 from deploy.monitor.model import FleetModel
 from deploy.monitor.plain import PlainPrinter
 from deploy.monitor.recorder import Recorder, Recorders, RecordWriter
-from deploy.monitor.types import Header, MonitorEvent, Record, Recording, TokenChange
+from deploy.monitor.types import (
+    Header,
+    MonitorEvent,
+    Record,
+    RecorderLink,
+    Recording,
+    TokenChange,
+)
 from deploy.monitor.verdict import Verdict, mission_verdict
 from deploy.monitor.view import FeedStats, render
 
@@ -124,6 +133,7 @@ class Watcher:
         self.verdict: Verdict | None = None
         self.mission = ""  # the mission watched, for a monitor that follows new runs
         self.new_run = False  # robots of a judged mission came back: the mission runs again
+        self.written: Counter[str] | None = None  # records written, by key family
 
     def feed(self, records: Iterable[Record]) -> None:
         fed = False
@@ -134,6 +144,8 @@ class Watcher:
             events = self.model.apply(record)
             if self.recorder is not None:
                 self.recorder.write(record)
+                if self.written is not None:
+                    self.written[keys.kind_of(record.key)] += 1
             if events:
                 self.screen.events(events)
         if fed and (self.verdict is None or not self.verdict.published):
@@ -171,11 +183,11 @@ async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
                      until_settled: bool = False, world_period: float = WORLD_PERIOD_S,
                      record: Path | None = None, record_mcap: Path | None = None,
                      source: str = "monitor",
-                     subscribed: asyncio.Event | None = None) -> FeedStats:
+                     link: RecorderLink | None = None) -> FeedStats:
     """Watch ``settings.mission`` until ``stop``, ``duration`` or (optionally) the end of
     the mission; the final state and world are queried once more before returning.
-    ``record`` and ``record_mcap`` keep every message as JSON Lines and as MCAP; ``subscribed``
-    is set once every subscription is declared."""
+    ``record`` and ``record_mcap`` keep every message as JSON Lines and as MCAP; ``link``
+    hears when every subscription is declared and how much has been written."""
     stop = stop or asyncio.Event()
     async with open_session_async(settings) as session, Bus(session, settings.mission) as bus:
         watcher.connected = True
@@ -191,9 +203,11 @@ async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
             kept.append(McapRecorder(record_mcap, settings.mission, started))
         if kept:
             watcher.recorder = kept[0] if len(kept) == 1 else Recorders(kept)
+        if link is not None:
+            watcher.written = link.written
         feed.start()
-        if subscribed is not None:
-            subscribed.set()
+        if link is not None:
+            link.subscribed.set()
         try:
             return await _loop(feed, watcher, stop, duration, until_settled, world_period)
         finally:
@@ -223,7 +237,7 @@ async def until_connected(connected: Callable[[], bool], settings: ConnectionSet
 
 async def recorded(main: Awaitable[T], settings: ConnectionSettings, path: Path | None,
                    source: str = "up", mcap: Path | None = None,
-                   recording: asyncio.Event | None = None) -> T:
+                   link: RecorderLink | None = None) -> T:
     """Await ``main`` (a launcher) with a recorder of ``settings.mission`` beside it (JSON
     Lines to ``path``, MCAP to ``mcap``); the recording ends when ``main`` does (at once if
     the router never came up)."""
@@ -231,7 +245,7 @@ async def recorded(main: Awaitable[T], settings: ConnectionSettings, path: Path 
     async with asyncio.TaskGroup() as group:
         recorder = group.create_task(watch_live(settings, watcher, stop=stop, record=path,
                                                 record_mcap=mcap, source=source,
-                                                subscribed=recording))
+                                                link=link))
         try:
             return await main
         finally:

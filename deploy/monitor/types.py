@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -10,6 +12,18 @@ from bus.messages import DeathNotice
 from planner.geometry import SubCell
 
 Via = Literal["sub", "query", "token", "gap"]
+
+
+@dataclass
+class RecorderLink:
+    """What a launcher knows of the recorder running beside it in its process: ``subscribed``
+    is set once the recorder listens, and ``written`` counts the records it has written by
+    key family ("tree/outbox", ...). A launcher whose messages no publisher cache can give
+    back starts its robots only once the recorder listens, and keeps the router up until the
+    recorder has written as many as the launcher itself heard."""
+
+    subscribed: asyncio.Event = field(default_factory=asyncio.Event)
+    written: Counter[str] = field(default_factory=Counter)
 
 EventKind = Literal[
     "joined", "state", "claimed", "conflict_lost", "tree_edge", "died", "detected_dead",
