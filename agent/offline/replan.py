@@ -14,6 +14,7 @@ kept until its sender catches up.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,11 +27,14 @@ from planner.types import BoolArray, Cycle, IntArray, Plan
 
 
 class ReplanBoard:
-    """The latest ReplanReport of each robot of a fleet of ``k`` flying ``plan``."""
+    """The latest ReplanReport of each robot of a fleet of ``k`` flying ``plan``. Only the
+    plan's robots (the agreed participants) take part in a re-plan: a robot that never
+    announced its start has no section, and its death changes nothing."""
 
     def __init__(self, plan: Plan, k: int, drops: DropCounter) -> None:
         self.cycle = plan.cycle
         self.k = k
+        self.members = tuple(sorted(rp.robot for rp in plan.robots))
         self.drops = drops
         self.rank = plan_order(plan)
         self.reports: dict[int, ReplanReport] = {}
@@ -59,9 +63,13 @@ class ReplanBoard:
         self.reports[msg.robot] = msg
         return known != msg
 
+    def epoch(self, dead: Collection[int]) -> tuple[int, ...]:
+        """The re-plan epoch of the robots known dead: the plan's robots among them."""
+        return tuple(r for r in self.members if r in dead)
+
     def missing(self, dead: tuple[int, ...]) -> list[int]:
-        """Robots not in ``dead`` whose report for epoch ``dead`` is not here yet."""
-        return [r for r in range(self.k) if r not in dead
+        """Members not in ``dead`` whose report for epoch ``dead`` is not here yet."""
+        return [r for r in self.members if r not in dead
                 and (r not in self.reports or self.reports[r].dead != dead)]
 
     def positions(self, dead: tuple[int, ...]) -> dict[int, int]:
@@ -72,7 +80,7 @@ class ReplanBoard:
     def inputs(self, dead: tuple[int, ...]) -> ReplanInputs:
         """What the re-plan of epoch ``dead`` (every report present) is made from: a copy,
         so that it can be computed off the event loop while reports keep arriving."""
-        used = [self.reports[r] for r in range(self.k) if r not in dead]
+        used = [self.reports[r] for r in self.members if r not in dead]
         covered = np.zeros(self.cycle.n, dtype=bool)
         digest = hashlib.sha256(f"mstc-replan/1 dead={dead}\n".encode())
         for report in used:

@@ -147,7 +147,10 @@ class OfflineRunner:
         return True
 
     def _dead(self) -> tuple[int, ...]:
-        return tuple(sorted(self.machine.dead))
+        """The re-plan epoch: the plan's robots known dead (a robot that never took part
+        and is declared dead later causes no re-plan)."""
+        assert self.board is not None
+        return self.board.epoch(self.machine.dead)
 
     async def _replan(self) -> None:
         """Stop, announce where we are, wait for every survivor's report of this epoch and
