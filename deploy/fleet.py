@@ -242,8 +242,8 @@ class Child:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         with log.open("ab") as out:
             self.proc = subprocess.Popen(
-                argv, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
-                env=env, start_new_session=True)
+                ended_with_launcher(argv), stdin=subprocess.DEVNULL, stdout=out,
+                stderr=subprocess.STDOUT, env=env, start_new_session=True)
         self.record = ProcessRecord(name=name, role=role, pid=self.proc.pid,
                                     started=start_ticks(self.proc.pid), log=str(log),
                                     robot=robot)
@@ -258,6 +258,16 @@ class Child:
 
     def tail(self, lines: int = 15) -> str:
         return log_tail(self.log, lines)
+
+
+def ended_with_launcher(argv: list[str]) -> list[str]:
+    """``argv`` run so that the kernel sends it SIGTERM when the launcher dies, even by
+    SIGKILL (``setpriv --pdeathsig``, which execs the command: the pid stays the command's).
+    Children run in sessions of their own, so without it a killed ``mstc up`` left its
+    router, simhw and agents running. Unchanged where there is no setpriv (util-linux).
+    The signal follows the launcher's thread that spawned the child: spawn on the loop."""
+    setpriv = shutil.which("setpriv")
+    return argv if setpriv is None else [setpriv, "--pdeathsig", "TERM", *argv]
 
 
 def niced(argv: list[str], niceness: int) -> list[str]:

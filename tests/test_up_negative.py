@@ -142,3 +142,25 @@ def test_kill_at_progress_really_kills(free_port: int, tmp_path: Path) -> None:
     assert lost(run) == {2: "killed by mstc up (SIGKILL)"}
     assert "SIGKILL agent 2 at 40 %" in result.stdout
     assert summary(run)["complete"] is True
+
+
+@pytest.mark.slow
+def test_a_sigkilled_launcher_leaves_no_process_of_its_fleet_running(free_port: int,
+                                                                    tmp_path: Path) -> None:
+    # Children run in sessions of their own (a terminal's hang-up must reach only the
+    # launcher, which stops them in order); a launcher killed outright could not, and its
+    # router, simhw and agents ran on until `mstc down`. The kernel now ends them with it.
+    run = tmp_path / "run"
+    proc = start_up(free_port, run, "--time-scale", "1")
+    try:
+        info = wait_for_fleet(run, proc)
+        children = [p for p in info.processes if p.role != "up"]
+        assert {p.role for p in children} >= {"router", "simhw", "agent"}
+        assert all(is_running(p) for p in children)
+        proc.kill()
+        proc.wait()
+        assert_all_gone(info)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
