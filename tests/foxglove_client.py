@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import websockets
+from websockets.typing import Subprotocol
 
 SUBPROTOCOL = "foxglove.sdk.v1"
 MESSAGE_DATA = 0x01  # binary opcode: subscription id (u32), log time (u64), payload
@@ -34,7 +35,7 @@ async def watch(port: int, seconds: float, *, until: Any = None) -> Received:
     got = Received()
     topics: dict[int, str] = {}
     deadline = time.monotonic() + seconds
-    async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL],
+    async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=[Subprotocol(SUBPROTOCOL)],
                                   max_size=None) as ws:
         assert ws.subprotocol == SUBPROTOCOL
         while (left := deadline - time.monotonic()) > 0:

@@ -41,7 +41,8 @@ class Clock:
 
 
 def test_a_robots_own_stall_is_never_taken_as_a_peers_death() -> None:
-    bus, clock, heard = FakeBus(), Clock(), []
+    bus, clock = FakeBus(), Clock()
+    heard: list[DeathNotice] = []
     service = LivelinessService(cast(Any, bus), 0, 1, timeout=1.0, clock=clock,
                                 on_death=heard.append)
     service.tick()
@@ -57,7 +58,8 @@ def test_a_robots_own_stall_is_never_taken_as_a_peers_death() -> None:
 
 
 def test_a_notice_of_this_robot_in_a_life_it_never_had_is_refused_as_forged() -> None:
-    bus, heard = FakeBus(), []
+    bus = FakeBus()
+    heard: list[DeathNotice] = []
     service = LivelinessService(cast(Any, bus), 0, 1, on_death=heard.append)
     service._on_heartbeat("mstc/t/hb/1", Heartbeat(1, 1, 0, None, "covering", 0.0))
     # Robot 1 is a known participant, but this robot has incarnation 1, not 2: a notice

@@ -20,13 +20,16 @@ _missions = itertools.count()
 def test_a_spec_reads_back_and_rejects_mistakes_in_one_line() -> None:
     spec = parse_spec("seed=7;progress.drop=0.1;*.dup=0.05;ormstc.delay=0.3;window=0.1")
     assert spec.seed == 7 and spec.window == 0.1
-    assert spec.rates("progress") is not None and spec.rates("progress").drop == 0.1
+    progress = spec.rates("progress")
+    assert progress is not None and progress.drop == 0.1
     assert spec.rates("status") == spec.rules["*"]
     # a family's rule covers its kinds (keys.kind_of says "ormstc/claim"), unless they have
     # their own
     assert spec.rates("ormstc/claim") == spec.rules["ormstc"]
     own = parse_spec("ormstc.drop=0.3;ormstc/claim.drop=0.5")
-    assert own.rates("ormstc/claim").drop == 0.5 and own.rates("ormstc/tree").drop == 0.3
+    claim, tree = own.rates("ormstc/claim"), own.rates("ormstc/tree")
+    assert claim is not None and claim.drop == 0.5
+    assert tree is not None and tree.drop == 0.3
     assert own.rates("hb") is None
     assert parse_spec(spec.text()) == spec
     for bad in ("progress.drop", "progress.melt=0.1", "progress.drop=2", "x=y"):

@@ -45,7 +45,8 @@ values = st.recursive(
 
 
 def _decodes_or_refuses(payload: bytes) -> None:
-    for expected in (TYPES, *TYPES):
+    every: tuple[Any, ...] = (TYPES, *TYPES)
+    for expected in every:
         with contextlib.suppress(DecodeError):
             decode(payload, expected)
 

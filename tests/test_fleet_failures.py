@@ -154,11 +154,11 @@ def check_offline(heard: Heard, case: OfflineCase, grid: OccupancyGrid,
     # The same against the independent oracle (not the agents' own state machine).
     independent = run_plan(case.plan, fit_failures(case.plan, moves))
     assert independent.complete
-    for robot, want in enumerate(ordered_walks(case.plan, independent)):
+    for robot, expected in enumerate(ordered_walks(case.plan, independent)):
         got = heard.walks[case.plan.robots[robot].robot]
-        if case.plan.robots[robot].robot in victims and len(got) == len(want) + 1:
+        if case.plan.robots[robot].robot in victims and len(got) == len(expected) + 1:
             got = got[:-1]
-        assert got == want, f"robot {robot}: ground truth walk differs from the oracle"
+        assert got == expected, f"robot {robot}: ground truth walk differs from the oracle"
     assert walked - in_flight <= {(taker, dead) for taker, dead, _ in independent.takeovers}
     print(f"{case.algo}: killed {moves} (reported moves), plan {case.steps}, "
           f"moves {[len(heard.walks[r]) - 1 for r in range(K)]}, walked takeovers {walked}")

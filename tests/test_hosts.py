@@ -50,8 +50,9 @@ def _secured(tmp_path: Path, near: Host, far: Host) -> dict[str, tuple[str, ...]
     path = tmp_path / credentials.CREDENTIALS_FILE
     credentials.generate(MISSION, ROBOTS).save(path)
     ca = ("--credentials", str(path), "--tls-ca", str(pki / "ca.pem"))
-    options = {role: (*ca, "--role", role, "--tls-cert", str(pki / f"{role}.pem"),
-                      "--tls-key", str(pki / f"{role}.key")) for role in roles}
+    options: dict[str, tuple[str, ...]] = {
+        role: (*ca, "--role", role, "--tls-cert", str(pki / f"{role}.pem"),
+               "--tls-key", str(pki / f"{role}.key")) for role in roles}
     options["router"] = (*ca, "--tls-cert", str(pki / "router.pem"), "--tls-key",
                          str(pki / "router.key"), "--mtls")
     return options

@@ -35,7 +35,7 @@ def _screen(model: FleetModel, log: EventLog, width: int, height: int,
 
 def _map_rows(lines: list[str]) -> list[str]:
     """The map panel's inner rows, up to its legend."""
-    rows = []
+    rows: list[str] = []
     for line in lines[1:]:
         inner = line.split("│")[1] if line.startswith("│") else ""
         if "covered" in inner and "partly" in inner:

@@ -278,6 +278,7 @@ def test_planned_tree_is_the_agents_tree_once_map_starts_kind_and_seed_are_known
             robot, 1, "covering", 0, 0, b"", (), (), {}, tree_kind="random", seed=7),
             "query"))
     plan = compute_plan(OccupancyGrid(open_room(8, 8)), starts, "nb", "random", 7)
+    assert plan.tree is not None
     assert model.planned_tree() == frozenset(plan.tree.edges())
     assert len(plan.tree.edges()) == 15  # 16 cells
     # A robot that disagrees about the seed: no tree rather than a wrong one.

@@ -67,7 +67,8 @@ def test_initial_w_is_the_side_walked_in_from() -> None:
         assert side == arrival_side(start)
         edges = {(cell, side), (w_cell, (side + 2) % 4)}
 
-        def has_edge(c: tuple[int, int], s: int, edges: set = edges) -> bool:  # type: ignore[type-arg]
+        def has_edge(c: tuple[int, int], s: int,
+                     edges: set[tuple[tuple[int, int], int]] = edges) -> bool:
             return (c, s) in edges
 
         sub = sub_facing(cell, side)

@@ -14,6 +14,7 @@ import pytest
 from foxglove_schemas_protobuf.Grid_pb2 import Grid
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from mcap.reader import make_reader
+from rosbags.interfaces import ConnectionExtRosbag2
 from rosbags.rosbag2 import Reader
 from test_monitor_fixtures import M, Mission, open_room, run_mission, two_robot_walks
 from test_robotics_encoders import grid_field
@@ -113,7 +114,9 @@ def test_rosbag2_holds_the_same_channels_as_ros_types(tmp_path: Path) -> None:
                      "/mstc/tree": ros.MARKERS_TYPE, "/mstc/events": ros.LOG_TYPE,
                      "/mstc/wire": ros.STRING_TYPE}
     with Reader(bag) as reader:
-        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
+        exts = {c.topic: c.ext for c in reader.connections}
+    qos = {topic: ext.offered_qos_profiles for topic, ext in exts.items()
+           if isinstance(ext, ConnectionExtRosbag2)}
     assert [(q.durability.name, q.depth) for q in qos["/map"]] == [("TRANSIENT_LOCAL", 1)]
     owners = counts.pop("/mstc/coverage_owner")
     assert counts == mcap_counts and owners == counts["/mstc/coverage"]

@@ -10,6 +10,7 @@ import json
 import re
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +58,10 @@ async def radio_stats(bus: Bus) -> RadioStats:
     raise AssertionError("the radio never answered")
 
 
+def _appender(reports: list[TreeReport]) -> Callable[[str, TreeReport], None]:
+    return lambda _key, report: reports.append(report)
+
+
 def test_radio_forwards_only_to_robots_on_the_same_or_an_adjacent_node(router: str) -> None:
     mission = "radio-range"
     radio = start("radio", "--tree", "perfect:N=2,H=2", "--robots", "3", "--connect", router,
@@ -67,9 +72,9 @@ def test_radio_forwards_only_to_robots_on_the_same_or_an_adjacent_node(router: s
         async def scenario() -> tuple[dict[int, list[TreeReport]], RadioStats]:
             heard: dict[int, list[TreeReport]] = {0: [], 1: [], 2: []}
             async with mission_bus(router, mission) as bus:
-                for robot in heard:
+                for robot, reports in heard.items():
                     bus.subscribe(keys.tree_inbox(mission, robot), TreeReport,
-                                  lambda _k, r, robot=robot: heard[robot].append(r))
+                                  _appender(reports))
                 await radio_stats(bus)  # the radio is up and subscribed
                 # robot 0 on the root, 1 on its child 1, 2 on node 4 (two edges from the root)
                 for robot, node in ((0, 0), (1, 1), (2, 4)):
@@ -292,7 +297,8 @@ async def test_the_router_stays_up_until_a_lagging_recorder_has_every_report(
     options = tree_fleet.TreeFleetOptions(
         tree="perfect:N=2,H=4", robots=2, algo="cocta", run_dir=tmp_path / "run",
         mission="rec-lag", endpoint=tree_fleet.free_endpoint())
-    link, path, said = RecorderLink(), tmp_path / "lag.jsonl", []
+    link, path = RecorderLink(), tmp_path / "lag.jsonl"
+    said: list[str] = []
     connection = ConnectionSettings(connect=(options.endpoint or "",), mission=options.mission)
     outcome = await recorded(tree_fleet.TreeFleet(options, said.append, link).run(), connection,
                              path, "tree-fleet", link=link)
@@ -311,7 +317,8 @@ async def test_a_recorder_that_never_catches_up_is_named_not_waited_for_ever(
     monkeypatch.setattr(tree_fleet, "RECORDER_CATCH_UP_S", 0.5)
     options = tree_fleet.TreeFleetOptions(tree="perfect:N=2,H=3", robots=2, algo="cocta",
                                           run_dir=tmp_path / "run", mission="rec-stuck")
-    link, said = RecorderLink(), []
+    link = RecorderLink()
+    said: list[str] = []
     link.subscribed.set()  # listens, but writes nothing
     outcome = await tree_fleet.TreeFleet(options, said.append, link).run()
     assert outcome.ok, outcome.message
