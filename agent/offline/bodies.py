@@ -7,10 +7,17 @@ each re-plan (every survivor computes everyone's), and how far along that route 
 found by matching its Progress sub-cells against the route. A robot whose last sub-cell is
 off its route stepped aside: it is taken to be on its way back to where it left the route.
 Robots known dead are left out (simhw's body vanishes on the death notice).
+
+A Progress can be lost (message faults), and a robot that then stops moving would stay where
+it was before in the others' knowledge for good. Two more sources put it right: the pose of
+its heartbeats (every 0.2 s; taken when its simulated time is not older than the place
+known), and this robot's bumps (the sub-cell bumped into is held: a body not known there is
+placed there), and a re-plan places each survivor where its report said it stood.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -25,6 +32,7 @@ class _Walk:
     route: tuple[int, ...]
     done: int = 0  # places of the route walked
     seq: int = -1  # the latest Progress seq applied
+    seen: float = -math.inf  # the simulated time of the latest place applied
 
 
 @dataclass
@@ -46,23 +54,74 @@ class Bodies:
                                                                 for s in rp.path[1:]))
         return out
 
-    def on_progress(self, robot: int, seq: int, index: int) -> bool:
-        """Robot ``robot`` reported its ``seq``-th move, into cycle index ``index``; True
-        when that is news."""
+    def on_progress(self, robot: int, seq: int, index: int,
+                    sim_time: float = -math.inf) -> bool:
+        """Robot ``robot`` reported its ``seq``-th move, into cycle index ``index`` (at
+        simulated time ``sim_time``); True when that is news."""
         walk = self.walks.get(robot)
         if walk is None or seq <= walk.seq or index < 0:
             return False
         walk.seq = seq
+        return self._place(walk, index, sim_time)
+
+    def on_pose(self, robot: int, index: int, sim_time: float) -> bool:
+        """Robot ``robot``'s heartbeat: its body stood on cycle index ``index`` at simulated
+        time ``sim_time``. True when that is news (a place its lost Progress did not tell)."""
+        walk = self.walks.get(robot)
+        if walk is None or index < 0:
+            return False
+        if index == walk.position:
+            walk.seen = max(walk.seen, sim_time)
+            return False
+        return self._place(walk, index, sim_time)
+
+    @staticmethod
+    def _place(walk: _Walk, index: int, sim_time: float) -> bool:
+        if sim_time < walk.seen:
+            return False  # older than the place known (a delayed message)
+        walk.seen = sim_time
         walk.position = index
         window = walk.route[walk.done:walk.done + 2 * LOOK]
         if index in window:
             walk.done += window.index(index) + 1
         return True
 
+    def on_bump(self, index: int, dead: Collection[int]) -> bool:
+        """This robot bumped into cycle index ``index``: some body holds it. When none is
+        known there, the one that most likely walked there unheard of (its Progress lost,
+        or still on its way) is placed there: the one with ``index`` soonest among its next
+        places, else one standing next to it (a step aside). True when that is news.
+
+        Without this a lost Progress left a body where it was before: two robots that met
+        head-on each thought the other's sub-cell free and bumped into it again and again,
+        or one waited for the other to open a ring the other did not see."""
+        live = [walk for robot, walk in sorted(self.walks.items()) if robot not in dead]
+        if any(walk.position == index for walk in live):
+            return False
+        best: tuple[int, _Walk] | None = None  # (places before it on the route, walk)
+        for walk in live:
+            window = walk.route[walk.done:walk.done + 2 * LOOK]
+            if index in window:
+                rank = window.index(index)
+            elif index in neighbours(self.cycle, walk.position):
+                rank = 2 * LOOK  # off its route: a step aside
+            else:
+                continue
+            if best is None or rank < best[0]:
+                best = (rank, walk)
+        if best is None:
+            return False  # a body nobody knows of: the bump patience decides
+        rank, walk = best
+        if rank < 2 * LOOK:
+            walk.done += rank + 1
+        walk.position = index
+        return True
+
     def on_replan(self, routes: Mapping[int, Sequence[int]],
                   positions: Mapping[int, int]) -> None:
         """A re-plan: each survivor walks ``routes[r]`` from ``positions[r]`` (its report);
-        a survivor already seen further on is placed along its new route."""
+        a survivor already seen further on is placed along its new route, any other where
+        it reported it stood (a Progress lost before it stopped to report left it behind)."""
         for robot, route in routes.items():
             walk = self.walks.get(robot)
             if walk is None:
@@ -71,6 +130,8 @@ class Bodies:
             walk.base, walk.route, walk.done = base, tuple(route), 0
             if walk.position != base and walk.position in walk.route[:2 * LOOK]:
                 walk.done = walk.route.index(walk.position) + 1
+            else:
+                walk.position = base
 
     def peers(self, dead: Collection[int]) -> list[Peer]:
         """Every body not known dead, with its next places as far as known."""

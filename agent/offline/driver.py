@@ -39,6 +39,7 @@ from bus.liveness import HeartbeatInfo
 from bus.messages import (
     AgentState,
     DeathNotice,
+    Heartbeat,
     MissionState,
     MissionStatus,
     Progress,
@@ -91,6 +92,8 @@ class OfflineAgent(BodyAgent):
         if self.options.recovery == "rebalance":
             bus.subscribe(keys.all_replans(m), ReplanReport, self._on_replan_report,
                           BoundedFifo(4096))
+            # the heartbeats' poses put right a body whose Progress was lost (Bodies.on_pose)
+            bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
 
     def _on_replan_report(self, key: str, msg: ReplanReport) -> None:
         if self.board is not None and self.board.on_report(key, msg):
@@ -108,8 +111,15 @@ class OfflineAgent(BodyAgent):
         if msg.robot != self.robot:
             self.peers.on_progress(key, msg)
             if self.bodies is not None and self.bodies.on_progress(
-                    msg.robot, msg.seq, self.bodies.cycle.position((msg.cell[0], msg.cell[1]))):
+                    msg.robot, msg.seq, self.bodies.cycle.position((msg.cell[0], msg.cell[1])),
+                    msg.sim_time):
                 self.peers.changed.set()  # a body moved: a robot waiting on it decides again
+
+    def _on_heartbeat(self, key: str, hb: Heartbeat) -> None:
+        if hb.robot != self.robot and hb.pose is not None and self.bodies is not None \
+                and self.bodies.on_pose(hb.robot, self.bodies.cycle.position(
+                    (hb.pose[0], hb.pose[1])), hb.sim_time):
+            self.peers.changed.set()
 
     def _on_death(self, notice: DeathNotice) -> None:
         # Deaths are durable facts: re-announce them so a restarted router loses none.

@@ -128,6 +128,9 @@ class OfflineRunner:
             return True
         if not await self.hardware.try_step_to(self.machine.cycle.at(step.target)):
             self.lane.bumped()
+            # a body holds the target: if none was known there, the one that walked there
+            # unheard of is placed there (its Progress lost), and the rule decides from that
+            self.bodies.on_bump(step.target, self.machine.dead)
             now = time.monotonic()
             if self._bumping is None or self._bumping[0] != step.target:
                 self._bumping = (step.target, now)
