@@ -232,7 +232,9 @@ class LivelinessService:
     the wire, and death notices broadcast for the deaths it detects.
 
     ``on_death(notice)`` is called on the loop once per newly known death of a peer;
-    ``fenced`` is set when this robot's own life has been declared dead (it must stop).
+    ``on_beat(heartbeat)`` with each heartbeat of a live peer's life (what it says besides
+    being alive, such as its pose: one subscription to heartbeats per process); ``fenced``
+    is set when this robot's own life has been declared dead (it must stop).
     Run ``await service.run()`` inside the agent's TaskGroup.
     """
 
@@ -242,6 +244,7 @@ class LivelinessService:
                  token_grace: float = DEFAULT_TOKEN_GRACE,
                  info: Callable[[], HeartbeatInfo] = HeartbeatInfo,
                  on_death: Callable[[DeathNotice], None] | None = None,
+                 on_beat: Callable[[Heartbeat], None] | None = None,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.bus = bus
         self.robot = robot
@@ -254,6 +257,7 @@ class LivelinessService:
                                              period=heartbeat_period, info=info)
         self.fenced = asyncio.Event()
         self._on_death = on_death
+        self._on_beat = on_beat
         self._clock = clock
         self._last_tick: float | None = None
         self._reminded: dict[int, float] = {}
@@ -274,6 +278,8 @@ class LivelinessService:
         now = self._clock()
         if not self.detector.on_heartbeat(hb, now):
             self._remind(hb, now)
+        elif self._on_beat is not None:
+            self._on_beat(hb)
 
     def _remind(self, hb: Heartbeat, now: float) -> None:
         """A dead life is still beating (it was hung, or missed the notice during an

@@ -57,6 +57,21 @@ def test_a_robots_own_stall_is_never_taken_as_a_peers_death() -> None:
     assert [n.robot for n in service.tick()] == [1] and [n.robot for n in heard] == [1]
 
 
+def test_a_live_peers_heartbeats_reach_the_agent_and_a_dead_lifes_do_not() -> None:
+    # Rebalancing agents read peers' poses off the heartbeats the liveness service already
+    # subscribes to (one subscription per process), never those of a life declared dead.
+    bus = FakeBus()
+    beats: list[Heartbeat] = []
+    service = LivelinessService(cast(Any, bus), 0, 1, on_beat=beats.append)
+    alive = Heartbeat(1, 1, 0, (3, 4, 0), "covering", 1.0)
+    service._on_heartbeat("mstc/t/hb/1", alive)
+    service._on_heartbeat("mstc/t/hb/0", Heartbeat(0, 1, 0, (0, 0, 0), "covering", 1.0))
+    assert beats == [alive]  # its own are not news
+    assert service.accept_notice(DeathNotice(1, 1, 0, "heartbeat", 2.0))
+    service._on_heartbeat("mstc/t/hb/1", Heartbeat(1, 1, 1, (3, 5, 0), "covering", 2.5))
+    assert beats == [alive]
+
+
 def test_a_notice_of_this_robot_in_a_life_it_never_had_is_refused_as_forged() -> None:
     bus = FakeBus()
     heard: list[DeathNotice] = []

@@ -31,7 +31,7 @@ from bus.config import ConnectionSettings
 from bus.errors import BusError
 from bus.faults import MessageFaults
 from bus.liveness import HeartbeatInfo, LivelinessService
-from bus.messages import AgentState, DeathNotice, EventKind, RobotEvent
+from bus.messages import AgentState, DeathNotice, EventKind, Heartbeat, RobotEvent
 
 # Time for the last status and event to leave before the session closes.
 LEAVE_FLUSH_S = 0.1
@@ -56,12 +56,13 @@ class AgentLife(ABC):
         self.error = ""
 
     def _make_liveness(self, bus: Bus, on_death: Callable[[DeathNotice], None],
-                       info: Callable[[], HeartbeatInfo] = HeartbeatInfo) -> LivelinessService:
+                       info: Callable[[], HeartbeatInfo] = HeartbeatInfo,
+                       on_beat: Callable[[Heartbeat], None] | None = None) -> LivelinessService:
         c = self.config
         return LivelinessService(bus, self.robot, self.incarnation,
                                  heartbeat_period=c.heartbeat_period, timeout=c.dead_after,
                                  token_grace=c.token_grace,
-                                 info=info, on_death=on_death)
+                                 info=info, on_death=on_death, on_beat=on_beat)
 
     def _make_announcer(self, bus: Bus,
                         state: Callable[[], AgentState] | None = None) -> StateAnnouncer:

@@ -82,7 +82,8 @@ class OfflineAgent(BodyAgent):
         self.peers = PeerTable(self.robot, self.config.k, bus.drops)
         self.hardware = Hardware(bus, self.robot, self.incarnation,
                                  timeout=self.config.hw_timeout)
-        self.liveness = self._make_liveness(bus, self._on_death, self._heartbeat_info)
+        self.liveness = self._make_liveness(bus, self._on_death, self._heartbeat_info,
+                                            self._on_heartbeat)
         self.announcer = self._make_announcer(bus, self.state_message)
         bus.subscribe(keys.all_statuses(m), RobotStatus, self.peers.on_status,
                       BoundedFifo(4096))
@@ -92,8 +93,6 @@ class OfflineAgent(BodyAgent):
         if self.options.recovery == "rebalance":
             bus.subscribe(keys.all_replans(m), ReplanReport, self._on_replan_report,
                           BoundedFifo(4096))
-            # the heartbeats' poses put right a body whose Progress was lost (Bodies.on_pose)
-            bus.subscribe(keys.all_heartbeats(m), Heartbeat, self._on_heartbeat, LatestWins())
 
     def _on_replan_report(self, key: str, msg: ReplanReport) -> None:
         if self.board is not None and self.board.on_report(key, msg):
@@ -115,7 +114,8 @@ class OfflineAgent(BodyAgent):
                     msg.sim_time):
                 self.peers.changed.set()  # a body moved: a robot waiting on it decides again
 
-    def _on_heartbeat(self, key: str, hb: Heartbeat) -> None:
+    def _on_heartbeat(self, hb: Heartbeat) -> None:
+        # the heartbeats' poses put right a body whose Progress was lost (Bodies.on_pose)
         if hb.robot != self.robot and hb.pose is not None and self.bodies is not None \
                 and self.bodies.on_pose(hb.robot, self.bodies.cycle.position(
                     (hb.pose[0], hb.pose[1])), hb.sim_time):
