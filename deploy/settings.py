@@ -66,7 +66,17 @@ LEASE_MS_PER_AGENT = 400
 # fleet dead (100 agents, grace 0.5 s: one agent fenced all the others).
 CROWDED_TOKEN_GRACE_S = 2.0
 BOOTING_PER_CORE = 4
-AGENT_NICE = 10
+# Every command, reply and status of a crowded fleet passes through the router (and every
+# command through simhw): starved of CPU, its receive queues back up by seconds and simhw's
+# replies come after the agents' attempt timeout, again and again (60 robots, agents at
+# niceness 10: the router got ~10 % of a core, 100-150 kB waited unread on each agent's link,
+# 23 agents stopped on "no answer from simhw within 60 s"). Under Linux's fair scheduler a
+# runnable process gets CPU in proportion to its niceness weight; the agents run niced so
+# that the router keeps at least RELAY_CORE_SHARE of a core against a fully busy fleet.
+AGENT_NICE = 19
+RELAY_CORE_SHARE = 0.5
+# The kernel's weights (sched_prio_to_weight) of the niceness values used here.
+NICE_WEIGHT = {0: 1024, 5: 335, 10: 110, 15: 36, 19: 15}
 BOOT_CPU_S = 1.0
 BOOT_SLACK = 4
 # A taker may walk this many already-covered sub-cells to reach a dead robot's section
@@ -220,6 +230,16 @@ def stall_timeout(time_scale: float, given: float | None = None) -> float:
 def crowded(robots: int, cores: int | None = None) -> bool:
     """More agents than CROWDED_AGENTS_PER_CORE per CPU core (``cores``: os.cpu_count())."""
     return robots > CROWDED_AGENTS_PER_CORE * _cores(cores)
+
+
+def relay_core_share(robots: int, cores: int | None = None, agent_nice: int = AGENT_NICE
+                     ) -> float:
+    """The share of one core the fair scheduler gives a runnable niceness-0 process (the
+    router) when ``robots`` agents at ``agent_nice`` all want the CPU too: each core runs
+    its share of the agents (robots / cores) next to it."""
+    per_core = robots / _cores(cores)
+    relay = NICE_WEIGHT[0]
+    return relay / (relay + per_core * NICE_WEIGHT[agent_nice])
 
 
 def _cores(cores: int | None) -> int:
