@@ -16,7 +16,15 @@ import pytest
 
 from deploy import autogroup
 from deploy.fleet import niced
-from deploy.settings import AGENT_NICE, RELAY_CORE_SHARE, relay_core_share
+from deploy.settings import (
+    MAX_NICE,
+    RELAY_CORE_SHARE,
+    agent_niceness,
+    fleet_timing,
+    relay_core_share,
+)
+
+AGENT_NICE = fleet_timing(100, 2).agent_nice
 
 # What deploy.fleet.Child runs for an agent: ``nice -n N python ... deploy.cli.main`` in a
 # session of its own; the probe stops main right after its start-up step (no sub-command
@@ -97,7 +105,12 @@ def test_a_refusal_past_the_patience_is_reported_not_raised() -> None:
 def test_the_agents_niceness_leaves_the_router_half_a_core_up_to_50_agents_per_core() -> None:
     for cores in (1, 2, 4):
         for robots in range(1, 50 * cores + 1):
-            assert relay_core_share(robots, cores) >= RELAY_CORE_SHARE, (robots, cores)
+            nice = agent_niceness(robots, cores)
+            assert relay_core_share(robots, cores, nice) >= RELAY_CORE_SHARE, (robots, cores)
+            # and no lower than that: the agents still compete with other sessions' work
+            assert nice == 1 or relay_core_share(robots, cores, nice - 1) < RELAY_CORE_SHARE
+    assert [agent_niceness(k, 2) for k in (30, 60, 100)] == [13, 16, 18]
+    assert agent_niceness(1000, 2) == MAX_NICE
     # the niceness of the failed runs: the router's share at 60 and 100 robots on 2 cores
     assert relay_core_share(60, 2, agent_nice=10) < 0.25
     assert relay_core_share(100, 2, agent_nice=10) < 0.2
