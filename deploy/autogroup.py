@@ -3,7 +3,7 @@
 Linux (with ``kernel.sched_autogroup_enabled``, the default of most distributions) shares
 the CPU fairly between *autogroups*, one per session, before niceness counts, and niceness
 only weighs processes of the same autogroup against each other. ``mstc up`` starts every
-child in a session of its own (deploy.fleet.Child), so an agent started with ``nice -n 19``
+child in a session of its own (deploy.fleet.Child), so an agent started with ``nice -n 10``
 still weighed as much as the router: 60 agents on 2 cores left the router ~10 % of a core,
 its receive queues held 100-500 kB per agent link and simhw's replies came after the agents'
 5 s attempt timeout (docs/operations.md, "Fleet scale"). An agent that leads its own session
