@@ -16,6 +16,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
+from deploy.autogroup import share_niceness
 from deploy.errors import UsageError
 from planner.errors import PlannerError
 
@@ -105,6 +106,7 @@ def _is_user_error(error: Exception) -> bool:
 
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    share_niceness()  # a niced fleet child yields to the router and simhw (deploy.autogroup)
     parser = _parser_for(argv)
     args = parser.parse_args(argv)
     try:

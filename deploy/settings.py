@@ -66,7 +66,21 @@ LEASE_MS_PER_AGENT = 400
 # fleet dead (100 agents, grace 0.5 s: one agent fenced all the others).
 CROWDED_TOKEN_GRACE_S = 2.0
 BOOTING_PER_CORE = 4
-AGENT_NICE = 10
+# Every command, reply and status of a crowded fleet passes through the router (and every
+# command through simhw): starved of CPU, its receive queues back up by seconds and simhw's
+# replies come after the agents' attempt timeout, again and again (60 robots, agents at
+# niceness 10 but in sessions of their own: the router got ~10 % of a core, 100-500 kB
+# waited unread on each agent's link, 23 agents stopped on "no answer from simhw within
+# 60 s"). Under Linux's fair scheduler a runnable process gets CPU in proportion to its
+# niceness weight (deploy.autogroup makes the agents' niceness count); the agents run at the
+# smallest niceness that keeps the router RELAY_CORE_SHARE of a core against the fleet all
+# busy at once: the lowest priority would make them yield to every other session's work on
+# the host as well (60 robots on 2 cores beside 1.8 cores of other work: none booted in 60 s).
+RELAY_CORE_SHARE = 0.5
+# The kernel's weights (sched_prio_to_weight) of niceness 0..19.
+NICE_WEIGHT = (1024, 820, 655, 526, 423, 335, 272, 215, 172, 137,
+               110, 87, 70, 56, 45, 36, 29, 23, 18, 15)
+MAX_NICE = len(NICE_WEIGHT) - 1
 BOOT_CPU_S = 1.0
 BOOT_SLACK = 4
 # A taker may walk this many already-covered sub-cells to reach a dead robot's section
@@ -222,6 +236,22 @@ def crowded(robots: int, cores: int | None = None) -> bool:
     return robots > CROWDED_AGENTS_PER_CORE * _cores(cores)
 
 
+def relay_core_share(robots: int, cores: int | None, agent_nice: int) -> float:
+    """The share of one core the fair scheduler gives a runnable niceness-0 process (the
+    router) when ``robots`` agents at ``agent_nice`` all want the CPU too: each core runs
+    its share of the agents (robots / cores) next to it."""
+    per_core = robots / _cores(cores)
+    relay = NICE_WEIGHT[0]
+    return relay / (relay + per_core * NICE_WEIGHT[agent_nice])
+
+
+def agent_niceness(robots: int, cores: int | None = None) -> int:
+    """The smallest niceness at which ``robots`` busy agents leave the router at least
+    RELAY_CORE_SHARE of a core (the lowest priority, MAX_NICE, when none does)."""
+    return next((nice for nice in range(1, MAX_NICE + 1)
+                 if relay_core_share(robots, cores, nice) >= RELAY_CORE_SHARE), MAX_NICE)
+
+
 def _cores(cores: int | None) -> int:
     return max(1, cores or os.cpu_count() or 1)
 
@@ -297,7 +327,7 @@ def fleet_timing(robots: int, cores: int | None = None, *, lease_ms: int | None 
         # the first agent's own gather ends once the last one's boot timeout has passed
         agent_start_timeout=round(boot + span) + DEFAULT_START_TIMEOUT,
         start_timeout=start_timeout or round(boot + span) + DEFAULT_START_TIMEOUT + 10.0,
-        booting=BOOTING_PER_CORE * n, agent_nice=AGENT_NICE)
+        booting=BOOTING_PER_CORE * n, agent_nice=agent_niceness(robots, n))
 
 
 def _centi(seconds: float) -> float:

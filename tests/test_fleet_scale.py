@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from agent.core.config import DEFAULT_BOOT_TIMEOUT, DEFAULT_START_TIMEOUT
 from agent.core.roster import decide, to_wire
+from agent.offline.driver import PULL_ROBOTS, pull_period
 from bus.messages import RobotStatus
 from deploy.fleet import niced
 from deploy.settings import (
@@ -116,3 +117,16 @@ def test_a_roster_sent_unsorted_or_with_repeats_decides_as_its_sorted_form(
         messy_peers[r] = _status(r, starts[r], tuple(wire))
     assert decide(0, starts[0], k, messy_peers, dead, boot_over) == \
         decide(0, starts[0], k, sorted_peers, dead, boot_over)
+
+
+# --- the backstop pulls of every robot's state --------------------------------------------
+
+def test_the_fleets_state_pulls_stay_within_pull_robots_per_announce_period() -> None:
+    for k in (1, 6, 25, 30, 60, 100, 300):
+        for announce in (0.5, 1.8, 5.0):
+            period = pull_period(announce, k)
+            assert period >= announce  # never more often than the announce period
+            # every pull asks all k robots: the fleet's state replies per second
+            assert k * k / period <= k * PULL_ROBOTS / announce * 1.0001
+    assert pull_period(1.8, 60) == pytest.approx(4.32)
+    assert pull_period(0.5, 6) == 0.5  # small fleets pull as before

@@ -54,6 +54,17 @@ from planner.types import Plan
 
 _log = logging.getLogger("mstc.agent")
 PULL_ROBOTS = 25
+
+
+def pull_period(announce_period: float, k: int) -> float:
+    """How often a robot pulls every robot's state (``refresh``) as a backstop for lost
+    messages: once per announce period, and in a big fleet once per k / PULL_ROBOTS periods.
+    Every pull asks every robot for its state (coverage included), so the fleet's pulls grow
+    with k squared: 60 robots pulling on every status heard never agreed within 100 s, and
+    60 robots whose sections were done pulling every announce period (1.8 s) kept the others
+    from moving once the router no longer held the traffic back."""
+    return announce_period * max(1.0, k / PULL_ROBOTS)
+
 STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress,
                ReplanReport)
 
@@ -185,11 +196,9 @@ class OfflineAgent(BodyAgent):
         return self.peers.dead
 
     async def _wait_news(self) -> None:
-        # Pull what may have been lost at most once per announce period, and in a big fleet
-        # once per k / PULL_ROBOTS periods: news wakes this wait many times a second, and every
-        # pull asks every robot for its state (60 robots pulling on every status heard never
-        # agreed within 100 s); statuses and deaths are re-announced meanwhile anyway.
-        every = self.config.announce_period * max(1.0, self.config.k / PULL_ROBOTS)
+        # Pull what may have been lost at most once per pull_period: news wakes this wait
+        # many times a second; statuses and deaths are re-announced meanwhile anyway.
+        every = pull_period(self.config.announce_period, self.config.k)
         if self.now() - self._pulled >= every:
             self._pulled = self.now()
             await self.refresh()
@@ -251,7 +260,8 @@ class OfflineAgent(BodyAgent):
             self.bodies = Bodies.of_plan(self.plan, self.robot)
         self.runner = OfflineRunner(self.bus, self.hardware, self.peers, machine,
                                     self.incarnation, refresh=self.refresh,
-                                    refresh_period=self.config.announce_period,
+                                    refresh_period=pull_period(self.config.announce_period,
+                                                               self.config.k),
                                     board=self.board, announce=self.announcer.set,
                                     bodies=self.bodies)
         self.phase = "driving"
