@@ -230,12 +230,11 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: Walks) -> Routes:
         else:
             break
     routes: Routes = {}
-    free: list[list[bool]] = area.sub_cells.tolist()
     for robot, region in enumerate(regions):
         if travel[robot, region] == 0:
             continue
         goal = {(i // w, i % w) for i in entries[region]}
-        route = sub_cell_route(area, area.starts[robot], goal, free)
+        route = sub_cell_route(area, area.starts[robot], goal)
         if route is not None:
             routes[robot] = route
     return routes
@@ -250,9 +249,10 @@ def _travel(area: WorkArea, state: PartitionState, table: Int32Array, entries: l
     regions = [region for region, entry in enumerate(entries) if entry]
     if regions:
         bounds = np.cumsum([0] + [len(entries[region]) for region in regions[:-1]])
-        columns = [i for region in regions for i in entries[region]]
+        columns = np.asarray([i for region in regions for i in entries[region]], dtype=np.int64)
         for at in range(0, state.k, CHUNK):  # robots in blocks: the gather is k x n
-            gathered = table[at:at + CHUNK, columns]
+            # np.take: several times faster than indexing a row slice with an index array
+            gathered = np.take(table[at:at + CHUNK], columns, axis=1)
             travel[at:at + CHUNK, regions] = np.minimum.reduceat(gathered, bounds, axis=1)
     for robot, (r, c) in enumerate(area.starts):
         if r * w + c in inside:
