@@ -7,6 +7,7 @@ Every builder is deterministic for a given seed.
 
 from __future__ import annotations
 
+import itertools
 import random
 from collections import deque
 from collections.abc import Iterable, Sequence
@@ -30,6 +31,7 @@ _DIRECTIONS: tuple[tuple[int, int], ...] = ((-1, 0), (0, 1), (1, 0), (0, -1))
 _HORIZONTAL_WEIGHT = 1.0
 _VERTICAL_WEIGHT = 2.0
 _JITTER = 0.5
+_SMALL_MST = 256  # edges up to which a seeded kruskal tree is found without scipy
 
 
 def build_tree(cells: BoolArray, kind: str = "dfs", *, seed: int | None = 0,
@@ -247,9 +249,43 @@ def _kruskal(cells: BoolArray, seed: int | None) -> SpanningTree:
                              np.full(int(vertical.sum()), _VERTICAL_WEIGHT)])
     if seed is not None:
         weight = weight + np.random.default_rng(seed).uniform(0.0, _JITTER, size=weight.size)
+    if seed is not None and weight.size <= _SMALL_MST:
+        pairs = _distinct_weight_mst(src.tolist(), dst.tolist(), weight.tolist())
+        if pairs is not None:
+            return _tree_from_pairs(cells, *pairs)
     graph = coo_matrix((weight, (src, dst)), shape=(h * w, h * w)).tocsr()
     mst = minimum_spanning_tree(graph).tocoo()
     return _tree_from_pairs(cells, mst.row.astype(np.int64), mst.col.astype(np.int64))
+
+
+def _distinct_weight_mst(src: list[int], dst: list[int], weight: list[float]
+                         ) -> tuple[IntArray, IntArray] | None:
+    """The minimum spanning forest's edges by Kruskal in plain Python; None on equal weights.
+
+    With distinct weights the minimum spanning tree is unique, so this is the tree scipy's
+    minimum_spanning_tree finds, without its sparse-matrix overhead (most of the cost of a
+    tree of a few dozen cells: the balanced planner builds one per robot).
+    """
+    order = sorted(range(len(weight)), key=weight.__getitem__)
+    if any(weight[a] == weight[b] for a, b in itertools.pairwise(order)):
+        return None  # ties: the tree would depend on scipy's order
+    root: dict[int, int] = {}
+
+    def find(x: int) -> int:
+        while (up := root.get(x, x)) != x:
+            root[x] = root.get(up, up)
+            x = up
+        return x
+
+    rows: list[int] = []
+    cols: list[int] = []
+    for i in order:
+        a, b = find(src[i]), find(dst[i])
+        if a != b:
+            root[a] = b
+            rows.append(src[i])
+            cols.append(dst[i])
+    return np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64)
 
 
 def _tree_from_parents(cells: BoolArray, parent: list[int]) -> SpanningTree:

@@ -182,3 +182,43 @@ def test_neighbour_pairs_and_offers_match_a_plain_scan(k: int, seed: int) -> Non
                                                for y in ys)
         assert found.lowest_taker[giver] == min(state.load[y] for ys in offers[giver].values()
                                                 for y in ys)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 12), st.integers(0, 10_000), st.floats(0.05, 0.6))
+def test_perfect_assignment_test_agrees_with_bipartite_matching(n: int, seed: int,
+                                                               density: float) -> None:
+    """assign._perfect (a 0/1 least-cost assignment) against scipy's maximum matching."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import maximum_bipartite_matching
+
+    from planner.balanced.assign import UNREACHABLE, _perfect
+
+    rng = np.random.default_rng(seed)
+    within = rng.random((n, n)) < density
+    travel = np.where(rng.random((n, n)) < 0.9, 0, UNREACHABLE)
+    allowed = csr_matrix(within & (travel < UNREACHABLE))
+    matched = (maximum_bipartite_matching(allowed, perm_type="column") >= 0).all()
+    assert _perfect(within, travel) == bool(matched)
+
+
+def test_seeded_small_kruskal_trees_are_scipys() -> None:
+    """Seeded kruskal trees small enough for the plain-Python Kruskal: scipy's tree."""
+    from planner import trees
+
+    rng = np.random.default_rng(7)
+    checked = 0
+    for seed in range(150):
+        h, w = (int(x) for x in rng.integers(1, 10, 2))
+        cells = rng.random((h, w)) < 0.85
+        if label_components(cells)[1] != 1:
+            continue
+        fast = trees.build_tree(cells, "kruskal", seed=seed)
+        small, trees._SMALL_MST = trees._SMALL_MST, -1
+        try:
+            slow = trees.build_tree(cells, "kruskal", seed=seed)
+        finally:
+            trees._SMALL_MST = small
+        assert (fast.right == slow.right).all() and (fast.down == slow.down).all()
+        checked += 1
+    assert checked > 50

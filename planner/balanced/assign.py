@@ -27,8 +27,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from scipy.sparse import coo_matrix, csr_matrix
-from scipy.sparse.csgraph import dijkstra, maximum_bipartite_matching, shortest_path
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra, shortest_path
 
 from planner.balanced.relocate import cell_distances, sub_cell_route
 from planner.balanced.state import PartitionState, articulation_points
@@ -230,12 +230,11 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: Walks) -> Routes:
         else:
             break
     routes: Routes = {}
-    free: list[list[bool]] = area.sub_cells.tolist()
     for robot, region in enumerate(regions):
         if travel[robot, region] == 0:
             continue
         goal = {(i // w, i % w) for i in entries[region]}
-        route = sub_cell_route(area, area.starts[robot], goal, free)
+        route = sub_cell_route(area, area.starts[robot], goal)
         if route is not None:
             routes[robot] = route
     return routes
@@ -250,9 +249,10 @@ def _travel(area: WorkArea, state: PartitionState, table: Int32Array, entries: l
     regions = [region for region, entry in enumerate(entries) if entry]
     if regions:
         bounds = np.cumsum([0] + [len(entries[region]) for region in regions[:-1]])
-        columns = [i for region in regions for i in entries[region]]
+        columns = np.asarray([i for region in regions for i in entries[region]], dtype=np.int64)
         for at in range(0, state.k, CHUNK):  # robots in blocks: the gather is k x n
-            gathered = table[at:at + CHUNK, columns]
+            # np.take: several times faster than indexing a row slice with an index array
+            gathered = np.take(table[at:at + CHUNK], columns, axis=1)
             travel[at:at + CHUNK, regions] = np.minimum.reduceat(gathered, bounds, axis=1)
     for robot, (r, c) in enumerate(area.starts):
         if r * w + c in inside:
@@ -264,8 +264,8 @@ def assign_regions(travel: IntArray, sizes: IntArray) -> list[int]:
     """Region per robot minimising the largest ``travel + size``, then the total travel.
 
     The bottleneck value comes from a binary search over the distinct costs with a perfect
-    bipartite matching test (scipy maximum_bipartite_matching); among assignments within it,
-    scipy's linear_sum_assignment picks the least total travel.
+    assignment test (_perfect); among assignments within it, scipy's linear_sum_assignment
+    picks the least total travel.
     """
     return _assignment(travel, sizes)[0]
 
@@ -292,9 +292,15 @@ def _assignment(travel: IntArray, sizes: IntArray) -> tuple[list[int], int | Non
 
 
 def _perfect(within: np.ndarray, travel: IntArray) -> bool:
-    """Whether every robot can have its own region among the allowed (walkable) pairs."""
-    allowed = csr_matrix(within & (travel < UNREACHABLE))
-    return bool((maximum_bipartite_matching(allowed, perm_type="column") >= 0).all())
+    """Whether every robot can have its own region among the allowed (walkable) pairs.
+
+    A least-cost assignment with cost 1 for every pair not allowed costs 0 exactly when one
+    exists. (scipy's maximum_bipartite_matching answers the same, but near the bottleneck
+    it could take seconds: 4.2 s for one test at k = 1000, against 0.05 s here.)
+    """
+    allowed = within & (travel < UNREACHABLE)
+    rows, cols = linear_sum_assignment(~allowed)
+    return bool(allowed[rows, cols].all())
 
 
 def _region_subs(state: PartitionState, robot: int) -> list[SubCell]:

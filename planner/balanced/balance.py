@@ -21,7 +21,7 @@ from typing import NamedTuple
 from planner.balanced.relieve import relieve
 from planner.balanced.reshape import reshape_pairs
 from planner.balanced.seeds import near_half
-from planner.balanced.state import SHARED, PartitionState
+from planner.balanced.state import RING_REMOVABLE, SHARED, PartitionState
 from planner.balanced.types import LeafCell
 
 WHOLE, SPLIT = 4, 2  # sub-cells moved by one transfer of each kind
@@ -228,6 +228,8 @@ def _taker_scan(state: PartitionState, giver: int, unit: int) -> list[int]:
     # k = 300) are computed only if one still would. The same set either way; the cut
     # cells cached or not decide nothing for a region _exact takes without them.
     unsure: list[tuple[int, list[int]]] = []
+    cut = state.cached_cut_cells(giver)  # nothing in the first loop computes it
+    ring = state.ring
     for u in whole:
         if u in pins:
             continue
@@ -238,11 +240,15 @@ def _taker_scan(state: PartitionState, giver: int, unit: int) -> list[int]:
             fresh = [y for y in _takers_of(state, giver, unit, u) if y not in found]
         if not fresh:
             continue
-        cut = state.cached_cut_cells(giver)
         if cut is not None:
             if u not in cut:
                 found.update(fresh)
-        elif state.locally_removable(giver, u):
+            continue
+        mask = 0  # PartitionState.locally_removable, inlined: this is the inner loop
+        for bit, v in ring[u]:
+            if label[v] == giver:
+                mask |= bit
+        if RING_REMOVABLE[mask]:
             found.update(fresh)
         else:
             unsure.append((u, fresh))
@@ -299,20 +305,27 @@ def _execute(state: PartitionState, chain: list[int], unit: int) -> tuple[int, i
 def _best_whole_cell(state: PartitionState, giver: int, taker: int) -> int:
     """The cell _execute's max over _moves(state, giver, taker, WHOLE) picks (-1: none).
 
-    One pass, the same cut tests in the same order: the moves of a cell differ only in
-    their anchor, so the first cell of the best contact wins, as there.
+    One pass: the moves of a cell differ only in their anchor, so the first cell of the best
+    contact wins, as there. A cell that cannot beat the best so far skips its cut test:
+    callers come here only for a region _exact takes, whose cut cells are cached (the test
+    is a lookup) or not needed (64 cells or fewer), so skipping a test changes nothing.
     """
     label, neighbours, pins = state.label, state.neighbours, state.pins
     best, best_gain = -1, 0
     for u in state.whole[giver]:
         if u in pins:
             continue
-        around = [label[v] for v in neighbours[u]]
-        if taker not in around or state.is_cut(giver, u):
+        gain, touches = 0, False
+        for v in neighbours[u]:
+            y = label[v]
+            if y == taker:
+                gain += 1
+                touches = True
+            elif y == giver:
+                gain -= 1
+        if not touches or (best >= 0 and gain <= best_gain) or state.is_cut(giver, u):
             continue
-        gain = around.count(taker) - around.count(giver)
-        if best < 0 or gain > best_gain:
-            best, best_gain = u, gain
+        best, best_gain = u, gain
     return best
 
 

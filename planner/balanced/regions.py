@@ -184,13 +184,11 @@ def escape_routes(area: WorkArea, state: PartitionState, robots: Sequence[int] |
     avoid = articulation_points(area_cells, state.neighbours)
     avoid |= {state.flat(cell_of(s)) for s in area.starts}
     routes: dict[int, tuple[SubCell, ...]] = {}
-    free: list[list[bool]] = area.sub_cells.tolist()
     for robot in stuck:
         target = _nearest_open_cell(state, robot, avoid)
         if target is None:
             continue
-        route = sub_cell_route(area, area.starts[robot], set(sub_cells_of(state.cell(target))),
-                               free)
+        route = sub_cell_route(area, area.starts[robot], set(sub_cells_of(state.cell(target))))
         if route is not None:
             routes[robot] = route
             avoid.add(target)

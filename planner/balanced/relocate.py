@@ -13,8 +13,11 @@ spreads over all k robots, so it is nearly free when it unblocks the chains.
 
 from __future__ import annotations
 
+import functools
 from collections import deque
 from collections.abc import Iterable, Sequence
+
+import numpy as np
 
 from planner.balanced.state import PartitionState, articulation_points
 from planner.geometry import cell_of, sub_cells_of
@@ -47,7 +50,6 @@ def relocation_routes(area: WorkArea, state: PartitionState, robots: Iterable[in
            for r, s in enumerate(area.starts if seeds is None else seeds)}
     avoid |= set(now.values()) | {state.flat(cell_of(s)) for s in area.starts}
     routes: dict[int, tuple[SubCell, ...]] = {}
-    free: list[list[bool]] = area.sub_cells.tolist()
     for robot in robots:
         home = state.flat(cell_of(area.starts[robot]))
         others = [u for r, u in now.items() if r != robot]
@@ -56,8 +58,7 @@ def relocation_routes(area: WorkArea, state: PartitionState, robots: Iterable[in
         best = max(near, key=lambda u: (u not in avoid, room.get(u, 0), -near[u], -u))
         if best in avoid or room.get(best, 0) <= room.get(home, 0):
             continue
-        route = sub_cell_route(area, area.starts[robot], set(sub_cells_of(state.cell(best))),
-                               free)
+        route = sub_cell_route(area, area.starts[robot], set(sub_cells_of(state.cell(best))))
         if route is None:
             continue
         routes[robot] = route
@@ -82,29 +83,42 @@ def cell_distances(state: PartitionState, sources: Sequence[int], cells: set[int
     return dist
 
 
-def sub_cell_route(area: WorkArea, start: SubCell, goal: set[SubCell],
-                   free: list[list[bool]] | None = None) -> tuple[SubCell, ...] | None:
+def sub_cell_route(area: WorkArea, start: SubCell, goal: set[SubCell]
+                   ) -> tuple[SubCell, ...] | None:
     """A shortest 4-connected walk over the area's sub-cells from start into ``goal``.
 
-    ``free``: ``area.sub_cells.tolist()``, for callers that route many robots (the
-    conversion costs more than a short search on a large map).
+    Breadth-first, neighbours north, east, south, west, stopping at the first goal sub-cell
+    taken from the queue. The search runs on flat indices of the sub-cell grid framed by a
+    blocked border (no bounds tests, no tuples; the framed grid is cached per area).
     """
     h, w = area.sub_cells.shape
-    if free is None:
-        free = area.sub_cells.tolist()  # Python lists: numpy element access is slow
-    parent: dict[SubCell, SubCell] = {start: start}
-    queue = deque([start])
+    grid = _framed(area.sub_cells.tobytes(), h, w)
+    width = w + 2
+    origin = (start[0] + 1) * width + start[1] + 1
+    goals = {(r + 1) * width + c + 1 for r, c in goal}
+    steps = (-width, 1, width, -1)
+    parent = {origin: origin}
+    queue = deque([origin])
     while queue:
         at = queue.popleft()
-        if at in goal:
+        if at in goals:
             path = [at]
-            while path[-1] != start:
+            while path[-1] != origin:
                 path.append(parent[path[-1]])
-            return tuple(path[::-1])
-        r, c = at
-        for nxt in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
-            if 0 <= nxt[0] < h and 0 <= nxt[1] < w and free[nxt[0]][nxt[1]] \
-                    and nxt not in parent:
+            return tuple((u // width - 1, u % width - 1) for u in reversed(path))
+        for step in steps:
+            nxt = at + step
+            if grid[nxt] and nxt not in parent:
                 parent[nxt] = at
                 queue.append(nxt)
     return None
+
+
+@functools.lru_cache(maxsize=4)
+def _framed(sub_cells: bytes, h: int, w: int) -> bytes:
+    """The h x w free flags (bytes of a bool array) framed by a row and column of blocked
+    sub-cells on every side, flattened row by row."""
+    inner = np.frombuffer(sub_cells, dtype=bool).reshape(h, w)
+    framed = np.zeros((h + 2, w + 2), dtype=np.uint8)
+    framed[1:-1, 1:-1] = inner
+    return framed.tobytes()
