@@ -20,6 +20,7 @@ ceil(n/k) - 1 in %, and the balanced makespan over opt's. Every plan is checked
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import time
 import tracemalloc
@@ -83,10 +84,10 @@ def main() -> None:
             area = instance(size, k, seed)
             tree = build_tree(area.cells, "dfs", seed=seed)
             bound = math.ceil(area.n / k) - 1
-            plan, cpu, peak = run(lambda a=area, t=tree, s=seed: plan_for(a, t, "balanced", s),
+            plan, cpu, peak = run(functools.partial(plan_for, area, tree, "balanced", seed),
                                   not args.no_memory)
             check(plan, area)
-            opt, opt_cpu, _ = run(lambda a=area, t=tree: make_plan(a, t, "opt"), False)
+            opt, opt_cpu, _ = run(functools.partial(make_plan, area, tree, "opt"), False)
             kept = "opt" if any(n.startswith(OPT_KEPT) for n in plan.notes) else (
                 "walks" if any(n.startswith(WALK_OUT) for n in plan.notes) else "regions")
             over = 100.0 * (plan.makespan - bound) / bound
