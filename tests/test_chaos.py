@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from agent.core.config import DEFAULT_BOOT_TIMEOUT
 from deploy.chaos.campaign import rerun_command, table
 from deploy.chaos.inject import partition_problem
 from deploy.chaos.schedule import SCENARIOS, Campaign, Fault, Trial, make_trial
@@ -221,7 +222,12 @@ async def test_a_ci_sized_campaign_loses_no_mission(tmp_path: Path) -> None:
 async def test_a_robot_heard_after_the_agreement_takes_no_part(tmp_path: Path) -> None:
     # Robot 2 is stopped as it boots, past the others' boot timeout: they agree without it
     # and declare its first life dead; when it wakes it stands down (or fences itself).
-    outcome = await _judged(_trial("bt", 3, Fault("hang", 0.0, 2, 10.5)), tmp_path)
+    # The others' boot clock starts once each is connected, up to a few seconds after robot
+    # 2 was stopped on a loaded machine, and robot 2 needs ~0.5 s after waking to announce:
+    # a hang of 10.5 s (boot timeout + 0.5) let it be heard in time on an idle machine
+    # (participants [0, 1, 2]), so the stop outlasts the timeout by 3 s.
+    hang = DEFAULT_BOOT_TIMEOUT + 3.0
+    outcome = await _judged(_trial("bt", 3, Fault("hang", 0.0, 2, hang)), tmp_path)
     logs = tmp_path / "trial" / "run" / "logs"
     assert "robots [2] never announced a start" in (logs / "agent-0.log").read_text()
     late = (logs / "agent-2.log").read_text()
