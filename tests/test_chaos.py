@@ -224,7 +224,7 @@ async def test_a_robot_heard_after_the_agreement_takes_no_part(tmp_path: Path) -
     # and declare its first life dead; when it wakes it stands down (or fences itself).
     # The others' boot clock starts once each is connected, up to a few seconds after robot
     # 2 was stopped on a loaded machine, and robot 2 needs ~0.5 s after waking to announce:
-    # a hang of 10.5 s (boot timeout + 0.5) let it be heard in time on an idle machine
+    # a hang of 10.5 s (boot timeout + 0.5) let it be heard in time in one full run
     # (participants [0, 1, 2]), so the stop outlasts the timeout by 3 s.
     hang = DEFAULT_BOOT_TIMEOUT + 3.0
     outcome = await _judged(_trial("bt", 3, Fault("hang", 0.0, 2, hang)), tmp_path)
