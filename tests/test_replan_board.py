@@ -36,7 +36,7 @@ def _told(board: ReplanBoard, plan: Plan, robot: int, dead: tuple[int, ...]) -> 
 
 def test_a_robot_that_took_no_part_is_no_member_of_any_re_plan() -> None:
     plan = _plan_of((0, 2, 3))  # robot 1 of 4 never announced its start
-    board = ReplanBoard(plan, 4, DropCounter())
+    board = ReplanBoard(plan, DropCounter())
     assert board.members == (0, 2, 3)
     # its death after planning is no epoch: nothing to re-plan
     assert board.epoch({1}) == ()
@@ -49,11 +49,15 @@ def test_a_robot_that_took_no_part_is_no_member_of_any_re_plan() -> None:
     assert board.missing((3,)) == []
     inputs = board.inputs((3,))
     assert [s.robot for s in inputs.survivors] == [0, 2]
+    # a report of a robot that took no part is refused, not kept
+    foreign = ReplanReport(1, 1, (3,), 0, (), pack_covered(np.zeros(plan.cycle.n, dtype=bool)))
+    assert not board.on_report(keys.replan("m", 1), foreign)
+    assert 1 not in board.reports and board.drops.total("replan", "invalid") == 1
 
 
 def test_a_report_of_another_epoch_does_not_count() -> None:
     plan = _plan_of((0, 1, 2))
-    board = ReplanBoard(plan, 3, DropCounter())
+    board = ReplanBoard(plan, DropCounter())
     _told(board, plan, 0, (2,))
     _told(board, plan, 1, ())
     assert board.missing((2,)) == [1]

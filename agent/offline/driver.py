@@ -256,7 +256,7 @@ class OfflineAgent(BodyAgent):
                                 takeover=not rebalancing)
         self.peers.attach(machine)
         if rebalancing:
-            self.board = ReplanBoard(self.plan, self.config.k, self.bus.drops)
+            self.board = ReplanBoard(self.plan, self.bus.drops)
             self.bodies = Bodies.of_plan(self.plan, self.robot)
         self.runner = OfflineRunner(self.bus, self.hardware, self.peers, machine,
                                     self.incarnation, refresh=self.refresh,

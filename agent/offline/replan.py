@@ -27,13 +27,12 @@ from planner.types import BoolArray, Cycle, IntArray, Plan
 
 
 class ReplanBoard:
-    """The latest ReplanReport of each robot of a fleet of ``k`` flying ``plan``. Only the
+    """The latest ReplanReport of each robot flying ``plan``. Only the
     plan's robots (the agreed participants) take part in a re-plan: a robot that never
     announced its start has no section, and its death changes nothing."""
 
-    def __init__(self, plan: Plan, k: int, drops: DropCounter) -> None:
+    def __init__(self, plan: Plan, drops: DropCounter) -> None:
         self.cycle = plan.cycle
-        self.k = k
         self.members = tuple(sorted(rp.robot for rp in plan.robots))
         self.drops = drops
         self.rank = plan_order(plan)
@@ -44,8 +43,8 @@ class ReplanBoard:
         n = self.cycle.n
         parsed = keys.parse(key)
         problem = ""
-        if not 0 <= msg.robot < self.k or (parsed is not None and parsed.robot != msg.robot):
-            problem = f"replan report of robot {msg.robot} on {key}"
+        if msg.robot not in self.members or (parsed is not None and parsed.robot != msg.robot):
+            problem = f"replan report of robot {msg.robot} (no member of the plan) on {key}"
         elif not all(0 <= i < n for i in (msg.position, *msg.route)):
             problem = f"replan report of robot {msg.robot} names places off the {n}-cycle"
         else:
