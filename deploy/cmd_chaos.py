@@ -15,10 +15,8 @@ import asyncio
 import time
 from pathlib import Path
 
+from deploy.chaos.schedule import GRID_FLEET
 from deploy.errors import UsageError
-from planner.algorithms import Family, algorithm, names
-
-GRID_FLEET = tuple(n for n in names(fleet=True) if algorithm(n).family is not Family.TREE)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -30,6 +30,15 @@ def test_trials_are_a_function_of_the_campaign_and_the_index() -> None:
     assert make_trial(Campaign(seed=6), 1) != make_trial(campaign, 1)
 
 
+def test_a_default_campaign_draws_every_grid_fleet_algorithm_the_cli_offers() -> None:
+    # the benchmark builds its Campaign without the CLI: one default for both
+    offered = build_parser().parse_args(["chaos"])
+    assert Campaign().algos == tuple(offered.algos.split(","))
+    assert {"nb", "bt", "opt", "balanced", "ormstc"} <= set(Campaign().algos)
+    drawn = {make_trial(Campaign(seed=8), i).algo for i in range(200)}
+    assert drawn == set(Campaign().algos)
+
+
 def test_a_failing_trial_s_command_re_runs_that_trial_alone(tmp_path: Path) -> None:
     campaign = Campaign(seed=3, algos=("nb", "ormstc"), sizes=(2, 3))
     command = rerun_command(campaign, 7, tmp_path)

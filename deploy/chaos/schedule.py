@@ -13,6 +13,10 @@ import random
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from planner.algorithms import Family, algorithm, names
+
+# Every algorithm a grid fleet runs (the registry's; tree coverage has its own launcher).
+GRID_FLEET = tuple(n for n in names(fleet=True) if algorithm(n).family is not Family.TREE)
 # What a trial's schedule is made of; "mixed" combines a kill, a hang and message loss.
 SCENARIOS = ("none", "early-kill", "kill", "kills", "hang", "long-hang", "loss",
              "router-restart", "router-freeze", "partition", "mixed", "starve", "starve-host")
@@ -83,7 +87,7 @@ class Campaign:
 
     seed: int = 0
     worlds: tuple[str, ...] = ("example",)
-    algos: tuple[str, ...] = ("nb", "bt", "opt", "ormstc")
+    algos: tuple[str, ...] = GRID_FLEET
     sizes: tuple[int, ...] = (2, 3, 4)
     scenarios: tuple[str, ...] = SCENARIOS
     extra: dict[str, str] = field(default_factory=dict)
