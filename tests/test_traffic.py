@@ -19,7 +19,7 @@ from planner.algorithms import algorithm
 from planner.cycle import stc_cycle
 from planner.offline.lockstep import TakeoverResult, replay
 from planner.offline.machine import Finished, MoveTo, RobotAction, TakeoverDecision
-from planner.offline.traffic import Go, Hold, Peer, Traffic
+from planner.offline.traffic import LOOK, Go, Hold, Peer, Traffic
 from planner.trees import build_tree
 from planner.types import Cycle, IntArray, Plan, RobotPlan, SubCell
 
@@ -244,6 +244,35 @@ def test_a_replan_places_a_body_where_it_reported_it_stood() -> None:
     bodies.on_replan({other: tuple(rest)}, {other: second})
     peer = next(p for p in bodies.peers(()) if p.robot == other)
     assert (peer.position, peer.ahead) == (second, tuple(rest))
+
+
+def test_a_peer_that_walked_far_along_its_new_route_before_this_re_plan_landed_stays_there(
+        ) -> None:
+    """Chaos seed 61, trials 465 and 483: every survivor solves the same re-plan, but one
+    finished 0.6 s before the other and walked a dozen places of its new route, heard as
+    Progress before the slower one applied the re-plan. The slower one put it back where its
+    report said it stood (only the first 2 x LOOK places of the new route were searched), so
+    its next places were unknown: no ring was seen when the two met head-on, and both waited
+    for good. It is now placed along its new route however far it got."""
+    cycle = corridor(16)  # sub-cells (0..1, 0..31)
+    walk = [cycle.position(s) for s in row(0, range(32))]
+    plan = Plan("opt", cycle, (RobotPlan(0, (1, 0), cycle.position((1, 0)), (), ((1, 0),)),
+                               RobotPlan(1, (0, 0), walk[0], (), tuple(cycle.at(w) for w in walk))))
+    bodies = Bodies.of_plan(plan, robot=0)
+    other = 1
+    # its re-plan: from where it reported it stood, walk back the way it came
+    base = walk[28]
+    new = tuple(walk[27::-1])
+    walked = 3 * LOOK
+    for seq, place in enumerate(new[:walked], start=1):
+        assert bodies.on_progress(other, seq, place)
+    bodies.on_replan({other: new}, {other: base})
+    peer = next(p for p in bodies.peers(()) if p.robot == other)
+    assert (peer.position, peer.ahead) == (new[walked - 1], new[walked:walked + LOOK])
+    # and its next Progress is read along the new route
+    assert bodies.on_progress(other, walked + 1, new[walked])
+    peer = next(p for p in bodies.peers(()) if p.robot == other)
+    assert (peer.position, peer.ahead) == (new[walked], new[walked + 1:walked + 1 + LOOK])
 
 
 def test_a_robot_that_stepped_aside_unheard_of_is_seen_by_its_heartbeat() -> None:

@@ -120,15 +120,17 @@ class Bodies:
     def on_replan(self, routes: Mapping[int, Sequence[int]],
                   positions: Mapping[int, int]) -> None:
         """A re-plan: each survivor walks ``routes[r]`` from ``positions[r]`` (its report);
-        a survivor already seen further on is placed along its new route, any other where
-        it reported it stood (a Progress lost before it stopped to report left it behind)."""
+        a survivor already seen further on is placed along its new route, however far (it
+        applied the same re-plan earlier and walked on while this robot's was computed:
+        chaos seed 61, trials 465 and 483), any other where it reported it stood (a
+        Progress lost before it stopped to report left it behind)."""
         for robot, route in routes.items():
             walk = self.walks.get(robot)
             if walk is None:
                 continue
             base = positions.get(robot, walk.position)
             walk.base, walk.route, walk.done = base, tuple(route), 0
-            if walk.position != base and walk.position in walk.route[:2 * LOOK]:
+            if walk.position != base and walk.position in walk.route:
                 walk.done = walk.route.index(walk.position) + 1
             else:
                 walk.position = base
