@@ -21,6 +21,7 @@ import itertools
 import pytest
 
 from planner.ormstc.claims import ClaimBook
+from planner.ormstc.knowledge import Knowledge
 from planner.ormstc.machine import OrmstcMachine
 from planner.ormstc.streams import NEVER, PeerStreams, Resender
 from planner.ormstc.types import (
@@ -292,3 +293,28 @@ def test_with_loss_the_acknowledgement_rule_never_gives_two_owners_for_d_2() -> 
 def test_with_loss_a_window_or_a_horizon_after_it_can_give_two_owners() -> None:
     assert _double_wins(1, "window", (0, 3)) > 0
     assert _double_wins(1, "horizon", (0, 1, 4)) > 0
+
+
+@pytest.mark.parametrize("priority", list(Priority))
+def test_a_claim_decided_after_a_long_wait_for_acknowledgements_still_counts(
+        priority: Priority) -> None:
+    """Chaos seed 63, trial 110 (message loss): robot 3 claimed a cell, robot 0 claimed it
+    0.7 s later, and robot 3's decision waited 1.3 s for acknowledgements. Its own claim had
+    expired meanwhile (the ttl of 2 x claim_wait + 1 that only the agents' in-order mode
+    had dropped for heard claims), so it lost to robot 0, which, holding robot 3's claim,
+    lost too: nobody took the cell, and robot 3 later walked round its whole tree back to
+    it. Under in-order delivery no claim expires: exactly one of the two wins."""
+    cell = (8, 3)
+    books = {me: Knowledge(me, 4, priority, claim_ttl=1.5, fifo=True) for me in (0, 3)}
+    # robot 3 claims at 0.0 with 17 cells, robot 0 at 0.7 with 22; each hears the other's
+    books[3].now = 0.0
+    books[3].claims.hear(cell, 3, 17, 0.0)
+    books[0].now = 0.7
+    books[0].claims.hear(cell, 0, 22, 0.7)
+    books[0].hear(ClaimMsg(3, cell, 17))
+    books[3].now = 0.7
+    books[3].hear(ClaimMsg(0, cell, 22))
+    # both decide late, robot 3 past its claim's old ttl
+    won = {me: book.claims.decide(cell, me, None, set(), 2.0).won for me, book in books.items()}
+    assert sum(won.values()) == 1, won
+    assert won[3]  # the higher priority both ways: fewest cells (17 < 22), or the higher id

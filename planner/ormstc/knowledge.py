@@ -4,6 +4,7 @@ the messages it heard: cell owners, obstacles, dead and finished robots, pending
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -61,7 +62,10 @@ class Knowledge:
     handlers: dict[type, Callable[[Any], None]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self.claims = ClaimBook(self.priority, self.claim_ttl)
+        # with in-order delivery no claim expires by time, this robot's own included: its
+        # decision may wait for acknowledgements past any ttl, and an own claim that lapsed
+        # meanwhile lost to a rival that, holding it, lost too (chaos seed 63, trial 110)
+        self.claims = ClaimBook(self.priority, math.inf if self.fifo else self.claim_ttl)
         self._pending = self.claims.pending  # the same dict, one attribute nearer
         self._fewest = self.priority is Priority.FEWEST
         self._others = frozenset(range(self.team)) - {self.me}
