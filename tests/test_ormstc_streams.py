@@ -299,11 +299,12 @@ def test_with_loss_a_window_or_a_horizon_after_it_can_give_two_owners() -> None:
 def test_a_claim_decided_after_a_long_wait_for_acknowledgements_still_counts(
         priority: Priority) -> None:
     """Chaos seed 63, trial 110 (message loss): robot 3 claimed a cell, robot 0 claimed it
-    0.7 s later, and robot 3's decision waited 1.3 s for acknowledgements. Its own claim had
-    expired meanwhile (the ttl of 2 x claim_wait + 1 that only the agents' in-order mode
-    had dropped for heard claims), so it lost to robot 0, which, holding robot 3's claim,
-    lost too: nobody took the cell, and robot 3 later walked round its whole tree back to
-    it. Under in-order delivery no claim expires: exactly one of the two wins."""
+    about a second later, and robot 3's decision, waiting for acknowledgements, came 1.7 s
+    after its claim. Its own claim had expired meanwhile (the ttl of 2 x claim_wait + 1,
+    which the agents' in-order mode had dropped only for heard claims), so it lost to
+    robot 0, which, holding robot 3's claim, lost too: nobody took the cell, and robot 3
+    later walked round its whole tree back to it. Under in-order delivery no claim
+    expires: exactly one of the two wins."""
     cell = (8, 3)
     books = {me: Knowledge(me, 4, priority, claim_ttl=1.5, fifo=True) for me in (0, 3)}
     # robot 3 claims at 0.0 with 17 cells, robot 0 at 0.7 with 22; each hears the other's
