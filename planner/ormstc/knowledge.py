@@ -4,7 +4,6 @@ the messages it heard: cell owners, obstacles, dead and finished robots, pending
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -65,11 +64,11 @@ class Knowledge:
         # with in-order delivery no claim expires by time, this robot's own included: its
         # decision may wait for acknowledgements past any ttl, and an own claim that lapsed
         # meanwhile lost to a rival that, holding it, lost too (chaos seed 63, trial 110)
-        self.claims = ClaimBook(self.priority, math.inf if self.fifo else self.claim_ttl)
+        self._expiry = float("inf") if self.fifo else self.claim_ttl
+        self.claims = ClaimBook(self.priority, self._expiry)
         self._pending = self.claims.pending  # the same dict, one attribute nearer
         self._fewest = self.priority is Priority.FEWEST
         self._others = frozenset(range(self.team)) - {self.me}
-        self._expiry = float("inf") if self.fifo else self.claim_ttl
         self._claimed: dict[int, set[Cell]] = {}  # robot -> cells it claimed (fifo only)
         self.handlers = {TreeEdgeMsg: self._hear_edge, ClaimMsg: self._hear_claim,
                          StartMsg: self._hear_start, CompletionMsg: self._hear_completion,
