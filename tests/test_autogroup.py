@@ -85,27 +85,24 @@ class _RateLimited:
         return len(text)
 
 
-def test_a_process_the_kernel_shows_no_autogroup_has_none(tmp_path: Path) -> None:
-    # init's session (where a CI runner may start the suite) is in the root task group:
-    # its /proc/self/autogroup reads empty, and nothing is written there
-    empty = tmp_path / "autogroup"
-    empty.write_text("")
-    assert autogroup.autogroup_nice(empty) is None
-    assert autogroup.autogroup_nice(tmp_path / "absent") is None
-    assert autogroup.autogroup_nice(_write(tmp_path, "/autogroup-41 nice 19\n")) == 19
-
-
-def _write(tmp_path: Path, text: str) -> Path:
-    path = tmp_path / "shown"
-    path.write_text(text)
-    return path
-
-
 @pytest.fixture
 def niced_leader(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(autogroup, "niceness", lambda: AGENT_NICE)
     monkeypatch.setattr(autogroup, "leads_own_session", lambda: True)
     monkeypatch.setattr(autogroup, "RETRY_S", 0.001)
+
+
+@pytest.mark.usefixtures("niced_leader")
+def test_a_process_the_kernel_shows_no_autogroup_has_none(tmp_path: Path) -> None:
+    # init's session (where a CI runner may start the suite) is in the root task group:
+    # its /proc/self/autogroup reads empty, and nothing is written there
+    shown = tmp_path / "autogroup"
+    shown.write_text("")
+    assert autogroup.autogroup_nice(shown) is None
+    assert not autogroup.share_niceness(shown) and shown.read_text() == ""
+    assert autogroup.autogroup_nice(tmp_path / "absent") is None
+    shown.write_text("/autogroup-41 nice 19\n")
+    assert autogroup.autogroup_nice(shown) == 19
 
 
 @pytest.mark.usefixtures("niced_leader")
