@@ -78,6 +78,44 @@ async def test_a_campaign_runs_at_most_jobs_trials_at_once_and_a_host_starver_al
     assert sum(starver for _, starver in seen) == 3
 
 
+def test_a_robot_cut_off_past_the_lease_is_no_false_suspicion(tmp_path: Path) -> None:
+    import json
+
+    from deploy.chaos.campaign import load_outcomes
+    from deploy.chaos.schedule import DEATH_HANG_S
+    from deploy.chaos.trial import classify_deaths
+
+    short, long = DEATH_HANG_S - 0.05, DEATH_HANG_S + 0.05
+    cases = [  # faults, robots declared dead -> (false suspicions, cut-off deaths)
+        ((Fault("partition", 1.0, 1, long),), [1], ([], [1])),
+        ((Fault("partition", 1.0, 1, short),), [1], ([1], [])),
+        ((Fault("partition", 1.0, 1, long),), [0], ([0], [])),  # only the one cut off
+        ((Fault("router-freeze", 1.0, None, long),), [0, 2], ([], [0, 2])),
+        ((Fault("router-freeze", 1.0, None, short),), [2], ([2], [])),
+        ((Fault("router-kill", 1.0, None, long),), [2], ([2], [])),  # sessions come back
+        ((Fault("kill", 1.0, 0), Fault("partition", 1.0, 0, long)), [0], ([], [])),
+        ((Fault("hang", 1.0, 2, long),), [2], ([], [])),
+    ]
+    lines = []
+    for faults, lost, (false, cut_off) in cases:
+        outcome = Outcome(_trial("bt", 3, *faults), "ok", "", 1.0, robots_lost=lost)
+        classify_deaths(outcome)
+        assert (outcome.false_suspicions, outcome.cut_off_deaths) == (false, cut_off), faults
+        # a file written by the older rule (everything not killed was a false suspicion)
+        # is tabulated by today's
+        old = outcome.to_json()
+        old.pop("cut_off_deaths")
+        old["false_suspicions"] = [r for r in lost if r not in outcome.trial.killed]
+        lines.append(json.dumps(old))
+    (tmp_path / "trials.jsonl").write_text("\n".join(lines) + "\n")
+    loaded = load_outcomes(tmp_path / "trials.jsonl")
+    assert [(o.false_suspicions, o.cut_off_deaths) for o in loaded] == [c[2] for c in cases]
+    header, *_, total = table(loaded).splitlines()
+    names = [name.strip() for name in header.split("  ") if name.strip()]
+    columns = dict(zip(names, total.split(), strict=True))
+    assert (columns["false susp."], columns["cut-off deaths"]) == ("4", "3"), columns
+
+
 def test_a_completed_mission_whose_recording_has_a_gap_record_is_ok(tmp_path: Path) -> None:
     import json
 

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TextIO
 
 from deploy.chaos.schedule import Campaign, Fault, Trial, make_trial
-from deploy.chaos.trial import Outcome, run_trial
+from deploy.chaos.trial import Outcome, classify_deaths, run_trial
 
 VERDICTS = ("ok", "lost", "gap", "double")
 
@@ -87,11 +87,12 @@ def not_injected(outcome: Outcome) -> bool:
 def table(outcomes: list[Outcome]) -> str:
     """Per scenario and in all: trials, missions lost, recordings failing an invariant
     although the mission completed (gaps), double work, recordings holding gap records
-    (what the recorder could not recover), false suspicions, the makespan against the
+    (what the recorder could not recover), false suspicions, robots declared dead while
+    cut off past the lease (by design, not false suspicions), the makespan against the
     fault-free plan (median ratio) and trials whose faults fell after the mission had ended."""
     rows: list[tuple[str, ...]] = [
         ("scenario", "trials", "lost", "gaps", "double", "gap records", "false susp.",
-         "makespan/plan", "late faults")]
+         "cut-off deaths", "makespan/plan", "late faults")]
     by_scenario: dict[str, list[Outcome]] = {}
     by_algo: dict[str, list[Outcome]] = {}
     for o in outcomes:
@@ -104,6 +105,7 @@ def table(outcomes: list[Outcome]) -> str:
                      *(str(sum(o.verdict == v for o in group)) for v in VERDICTS[1:]),
                      str(sum(bool(o.recording_gaps) for o in group)),
                      str(sum(len(o.false_suspicions) for o in group)),
+                     str(sum(len(o.cut_off_deaths) for o in group)),
                      f"{statistics.median(ratios):.2f}" if ratios else "-",
                      str(sum(not_injected(o) for o in group))))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
@@ -121,5 +123,7 @@ def load_outcomes(path: Path) -> list[Outcome]:
         data = json.loads(line)
         trial = dict(data.pop("trial"))
         trial["faults"] = tuple(Fault(**f) for f in trial["faults"])
-        outcomes.append(Outcome(trial=Trial(**trial), **data))
+        outcome = Outcome(trial=Trial(**trial), **data)
+        classify_deaths(outcome)  # by today's rule, also for files written before it
+        outcomes.append(outcome)
     return outcomes

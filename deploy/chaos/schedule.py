@@ -71,6 +71,22 @@ class Trial:
         return {f.robot for f in self.faults if f.robot is not None
                 and (f.kind == "kill" or (f.kind == "hang" and f.seconds >= DEATH_HANG_S))}
 
+    @property
+    def cut_off(self) -> set[int]:
+        """Robots a fault leaves unreachable past the lease (a partition, or a frozen router
+        for every robot, of DEATH_HANG_S or more): declaring one of them dead is the
+        liveliness token doing its job, as after a long hang; it need not happen, since
+        the router may keep a session whose keep-alives were only late."""
+        robots: set[int] = set()
+        for f in self.faults:
+            if f.seconds < DEATH_HANG_S:
+                continue
+            if f.kind == "partition" and f.robot is not None:
+                robots.add(f.robot)
+            elif f.kind == "router-freeze":
+                robots.update(range(self.robots))
+        return robots - self.killed
+
     def describe(self) -> str:
         parts = [f.describe() for f in self.faults]
         if self.messages:
@@ -94,8 +110,8 @@ class Campaign:
 
 
 LONG_HANG_S = 4.0  # longer than the agents' death timeout (3 s by default)
-# A process stopped this long loses its liveliness token (~0.75 x the 1 s Zenoh lease):
-# declared dead by design, so not a false suspicion.
+# A process stopped (or cut off) this long loses its liveliness token (~0.75 x the 1 s
+# Zenoh lease): declared dead by design, so not a false suspicion.
 DEATH_HANG_S = 0.75
 
 

@@ -7,7 +7,9 @@ robot was left); ``gap`` (the mission completed but its recording says otherwise
 on the way, not a failure: what the recorder could not recover is a gap record instead, and
 the report fails nothing on it; ``recording_gaps`` lists those records); ``double`` (a
 cell owned by two live robots, or a revisit the algorithm promises not to make, in the
-recording); ``false-suspicion`` counts robots declared dead that no fault was meant to kill.
+recording); ``false_suspicions`` lists robots declared dead that no fault was meant to kill
+and none cut off past the lease (``cut_off_deaths``: partitioned, or behind a frozen router,
+long enough for the liveliness token to go, as by design).
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ class Outcome:
     planned: int = 0
     robots_lost: list[int] = field(default_factory=list)
     false_suspicions: list[int] = field(default_factory=list)
+    cut_off_deaths: list[int] = field(default_factory=list)
     report_failures: list[str] = field(default_factory=list)
     recording_gaps: list[str] = field(default_factory=list)
     injected: list[str] = field(default_factory=list)
@@ -55,6 +58,15 @@ class Outcome:
         data = asdict(self)
         data["trial"] = self.trial.to_json()
         return data
+
+
+def classify_deaths(outcome: Outcome) -> None:
+    """Split the robots lost that no fault was meant to kill into cut-off deaths (by design:
+    unreachable past the lease) and false suspicions (the rest)."""
+    trial = outcome.trial
+    unmeant = [r for r in outcome.robots_lost if r not in trial.killed]
+    outcome.cut_off_deaths = [r for r in unmeant if r in trial.cut_off]
+    outcome.false_suspicions = [r for r in unmeant if r not in trial.cut_off]
 
 
 def free_port() -> int:
@@ -145,7 +157,7 @@ def judge(trial: Trial, workdir: Path, code: int | None, wall: float,
     outcome.makespan = int(summary["makespan_moves"])
     outcome.planned = int(summary.get("planned_makespan") or 0)
     outcome.robots_lost = sorted(int(r["robot"]) for r in summary["robots_lost"])
-    outcome.false_suspicions = [r for r in outcome.robots_lost if r not in trial.killed]
+    classify_deaths(outcome)
     report = subprocess.run(mstc_argv("report", "--json", str(workdir / "recording.jsonl")),
                             capture_output=True, text=True, check=False)
     try:
