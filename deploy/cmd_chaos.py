@@ -27,7 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run trial I alone (the command printed for a failing trial)")
     parser.add_argument("--seed", type=int, default=0, help="campaign seed (0)")
     parser.add_argument("--worlds", default="example",
-                        help="comma-separated builtin worlds or map files (example)")
+                        help="comma-separated builtin worlds, generated worlds "
+                             "(rooms:12x16:3, maze:11x15:1, ...) or map files (example)")
     parser.add_argument("--algos", default=",".join(GRID_FLEET),
                         help=f"comma-separated algorithms ({','.join(GRID_FLEET)})")
     parser.add_argument("--sizes", default="2,3,4", help="comma-separated team sizes (2,3,4)")

@@ -70,7 +70,8 @@ def test_parse_kill_rejects_malformed(text: str) -> None:
 
 
 @pytest.mark.parametrize(("extra", "message"), [
-    (["--world", "no-such-world"], "neither a builtin world nor an existing map file"),
+    (["--world", "no-such-world"], "neither a builtin world, a generated world nor an existing"),
+    (["--world", "maze:14x9:1"], "a maze has odd sides"),
     (["--kill", "5@1"], "robots are 0..1"),
     (["--starts", "0,0"], "--starts gives 1 robots"),
     (["--starts", "0,0;0,0"], "robots 0 and 1 both start"),

@@ -5,6 +5,7 @@
     load_map("floor.yaml", tool_width=0.5)       # ROS map_server YAML + image
     load_map("indoor_real.pgm", cell_size=10)    # occupancy image, 10 px per sub-cell
     resolve_world("office")                      # a builtin world, else a path
+    resolve_world("rooms:30x40:3")               # a generated world (planner.maps.generated)
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from planner.errors import MapFormatError, MapReadError
 from planner.maps.ascii import parse_ascii
 from planner.maps.discretize import downsample
 from planner.maps.files import describe, read_image, read_text
+from planner.maps.generated import EXAMPLES, generated_world, is_generated
 from planner.maps.image import ROS_DEFAULTS, Thresholds, free_pixels
 from planner.maps.movingai import parse_movingai
 from planner.maps.ros import cell_size_for, parse_ros_yaml
@@ -80,12 +82,17 @@ def load_map(path: str | os.PathLike[str], cell_size: int | None = None, *,
 
 
 def resolve_world(spec: str | os.PathLike[str], cell_size: int | None = None) -> OccupancyGrid:
-    """A builtin world by name (BUILTIN_WORLDS), else a map file by path."""
+    """A builtin world by name (BUILTIN_WORLDS), a generated world by its spec
+    (planner.maps.generated, e.g. ``rooms:30x40:3``), else a map file by path."""
     text = os.fspath(spec)
     if text in BUILTIN_WORLDS:
         world = builtin_world(text)
         return OccupancyGrid(downsample(world.free, _size(cell_size), text), name=text)
+    if is_generated(text) and not Path(text).exists():
+        world = generated_world(text)
+        return OccupancyGrid(downsample(world.free, _size(cell_size), text), name=text)
     if not Path(text).exists():
-        raise MapReadError(text, "neither a builtin world nor an existing map file; the "
-                           "builtin worlds are " + ", ".join(BUILTIN_WORLDS))
+        raise MapReadError(text, "neither a builtin world, a generated world nor an existing "
+                           "map file; the builtin worlds are " + ", ".join(BUILTIN_WORLDS)
+                           + "; generated ones look like " + ", ".join(EXAMPLES))
     return load_map(text, cell_size)
