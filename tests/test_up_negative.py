@@ -125,8 +125,15 @@ def test_the_readme_headline_command_kills_robot_2(free_port: int, tmp_path: Pat
         # The agent never finished: its log has no completion of its own.
         log = RunDir(run).log_path("agent-2").read_text()
         assert "mission complete" not in log
-        # the default recovery: the survivors re-plan together, nobody takes over
-        assert "re-planned: dead [2]" in out, out
+        # The default recovery: the survivors re-plan together, nobody takes over. On a
+        # loaded host the kill at 3 s can come before agent 2 has announced its start (its
+        # imports alone took that long beside a chaos campaign); then the others agree on a
+        # fleet without it and plan for five from the start. Either story, told once.
+        before_start = "robots [2] never announced a start and take no part" in out
+        replanned = "re-planned: dead [2]" in out
+        assert before_start != replanned, out
+        if before_start:  # then it cannot have been in the agreement either
+            assert "participants [" not in log, log
         assert summary(run)["takeovers"] == 0
     finally:
         if proc.poll() is None:
