@@ -166,6 +166,32 @@ def test_balanced_walk_outs_may_cross_other_regions_and_nothing_else() -> None:
     assert statuses(report)[name] == "failed"
 
 
+def test_a_balanced_plan_that_kept_opt_is_held_to_opt_s_promise() -> None:
+    # chaos seed 67, trial 9: two robots on a floor plan, where the registry's balanced
+    # planner keeps optimal MSTC (shorter than the regions); opt's walks revisit sub-cells
+    # on their way back, which the walk-out promise had counted as double work
+    from planner.algorithms import algorithm
+    from planner.balanced.plan import OPT_KEPT
+    from planner.geometry import cell_of
+    from planner.trees import build_tree
+
+    grid = resolve_world("rooms:12x16:1")
+    starts = [(22, 0), (17, 13)]
+    area = work_area(grid, starts)
+    tree = build_tree(area.cells, "dfs", seed=0, starts=[cell_of(s) for s in starts])
+    plan = algorithm("balanced").load_plan()(area, tree, "balanced", 0)
+    assert any(note.startswith(OPT_KEPT) for note in plan.notes)
+    walks = {rp.robot: list(rp.path) for rp in plan.robots}
+    report = report_of(run_mission(np.array(grid.free), walks, algo="balanced").records)
+    assert report.revisits > 0
+    name = "at most twice, by the same robot (balanced, which kept opt's plan)"
+    assert {inv.name: inv.status for inv in report.invariants}[name] == "ok"
+    # and opt's promise is a promise: a sub-cell entered by both robots fails it
+    walks[1] = [*walks[1], walks[0][-1]]
+    report = report_of(run_mission(np.array(grid.free), walks, algo="balanced").records)
+    assert {inv.name: inv.status for inv in report.invariants}[name] == "failed"
+
+
 def test_the_text_report_says_how_many_revisited_sub_cells_it_leaves_out() -> None:
     # both robots snake over the whole room: every one of its 32 sub-cells is revisited
     room = open_room()

@@ -18,7 +18,7 @@ from deploy.monitor.figures import mission_figures
 from deploy.monitor.model import FleetModel
 from deploy.monitor.redundancy import EntryAccount, account_entries
 from deploy.monitor.types import Gap, Record, Recording
-from deploy.monitor.walkouts import walk_out_redundancy
+from deploy.monitor.walkouts import kept_opt, remade_plan, walk_out_redundancy
 from planner.algorithms import ALGORITHMS, Family, Revisits
 from planner.offline.traffic import TrafficCounts
 
@@ -295,9 +295,15 @@ def _redundancy(model: FleetModel, algos: list[str]) -> Invariant:
     promise = known.revisits if known is not None else Revisits.ANY
     if known is not None and known.family is Family.ONLINE:
         return _ormstc_redundancy(model)
+    shown = algo
     if promise is Revisits.WALK_OUTS:
-        return Invariant(f"no sub-cell covered twice except on walk-outs ({algo})",
-                         *walk_out_redundancy(model, algo))
+        name = f"no sub-cell covered twice except on walk-outs ({algo})"
+        plan = remade_plan(model, algo)
+        if isinstance(plan, str):
+            return Invariant(name, "skipped", plan)
+        if not kept_opt(plan):
+            return Invariant(name, *walk_out_redundancy(model, plan))
+        promise, shown = ALGORITHMS["opt"].revisits, f"{algo}, which kept opt's plan"
     if promise is Revisits.NONE:
         twice = sorted(c for c, n in counts.items() if n > 1)
         if twice:
@@ -306,7 +312,7 @@ def _redundancy(model: FleetModel, algos: list[str]) -> Invariant:
                              + _whose(model, twice))
         return Invariant(f"no sub-cell covered twice ({algo})", "ok", "every sub-cell once")
     if promise is Revisits.BACKTRACK:
-        name = f"at most twice, by the same robot ({algo})"
+        name = f"at most twice, by the same robot ({shown})"
         thrice = sorted(c for c, n in counts.items() if n > 2)
         shared = sorted(c for c, who in model.cover.visitors.items() if len(set(who)) > 1)
         if thrice or shared:

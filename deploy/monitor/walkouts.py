@@ -3,7 +3,10 @@ except by moves that only lead a robot to its region (its walk-out).
 
 How long each robot's walk-out is comes from the plan itself, made again from what the record
 holds (the world, each robot's start, the seed and tree kind its agent announced): the
-planner is pure and deterministic, and the agents compared digests of that very plan.
+planner is pure and deterministic, and the agents compared digests of that very plan. Where
+the registry's planner kept plain optimal MSTC instead (its makespan was smaller: a note
+starting with ``planner.balanced.plan.OPT_KEPT``), the robots walked opt's plan and opt's
+promise holds instead (``kept_opt``).
 """
 
 from __future__ import annotations
@@ -16,11 +19,11 @@ from planner.errors import PlannerError
 from planner.geometry import cell_of
 from planner.grid import work_area
 from planner.trees import build_tree
-from planner.types import OccupancyGrid, SubCell
+from planner.types import OccupancyGrid, Plan, SubCell
 
 
-def walk_out_moves(model: FleetModel, algo: str) -> dict[int, int] | str:
-    """Each robot's planned walk-out moves, or why the plan cannot be made again."""
+def remade_plan(model: FleetModel, algo: str) -> Plan | str:
+    """The plan the agents computed, made again from the record, or why it cannot be."""
     free = model.cover.free
     views = model.robots
     if free is None:
@@ -33,19 +36,25 @@ def walk_out_moves(model: FleetModel, algo: str) -> dict[int, int] | str:
         area = work_area(OccupancyGrid(free), starts)
         tree = build_tree(area.cells, views[0].tree_kind or "dfs", seed=seed,
                           starts=[cell_of(s) for s in starts])
-        plan = algorithm(algo).load_plan()(area, tree, algo, seed)
+        plan: Plan = algorithm(algo).load_plan()(area, tree, algo, seed)
     except PlannerError as error:
         return f"the plan cannot be made again: {error}"
-    return {rp.robot: rp.walk_out for rp in plan.robots}
+    return plan
 
 
-def walk_out_redundancy(model: FleetModel, algo: str) -> tuple[str, str]:
-    """(status, detail) of the promise: "ok", "failed" or "skipped" and why."""
+def kept_opt(plan: Plan) -> bool:
+    """True if the registry's balanced planner kept optimal MSTC for this plan."""
+    from planner.balanced.plan import OPT_KEPT  # the planner is loaded with the plan anyway
+
+    return any(note.startswith(OPT_KEPT) for note in plan.notes)
+
+
+def walk_out_redundancy(model: FleetModel, plan: Plan) -> tuple[str, str]:
+    """(status, detail) of the promise for ``plan`` (the remade one, regions not opt):
+    "ok", "failed" or "skipped" and why."""
     if not any(v.path for v in model.robots.values()):
         return "skipped", "no ground-truth walks in the record"
-    walk_outs = walk_out_moves(model, algo)
-    if isinstance(walk_outs, str):
-        return "skipped", walk_outs
+    walk_outs = {rp.robot: rp.walk_out for rp in plan.robots}
     entries: Counter[SubCell] = Counter()
     for robot, view in model.robots.items():
         entries.update(view.path[walk_outs.get(robot, 0):])  # path[w] is where the region starts
