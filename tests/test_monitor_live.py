@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from waiting import wait_until
 
 from bus import keys
 from bus.announce import Announcer
@@ -288,17 +287,24 @@ async def test_recorded_runs_a_launcher_with_a_recorder_beside_it(router: str,
                     bus.publish(keys.heartbeat(mission, 1),
                                 Heartbeat(1, 1, probe, None, "x", 0.0))
                     await asyncio.sleep(0.1)
-            for seq in range(1, 6):
-                bus.publish(keys.heartbeat(mission, 0), Heartbeat(0, 1, seq, None, "x", 0.0))
-            await wait_until(lambda: len(heartbeats_in(path)) >= 5, 20.0,
-                             "the recorder to write the 5 heartbeats")
+            # Heartbeats are DROP traffic (bus/qos.py): a router starved on a loaded host
+            # may drop some (a CI rehearsal beside a chaos campaign saw fewer than 5 of 5
+            # within 20 s), so robot 0 beats on until five are written.
+            async with asyncio.timeout(30.0):
+                while len(heartbeats_in(path)) < 5:
+                    published.append(len(published) + 1)
+                    bus.publish(keys.heartbeat(mission, 0),
+                                Heartbeat(0, 1, published[-1], None, "x", 0.0))
+                    await asyncio.sleep(0.1)
         return 7
 
+    published: list[int] = []
     assert await recorded(launcher(), settings, path) == 7
     recording = read_recording(path)
     assert recording.header.source == "up" and recording.header.mission == mission
-    assert [r.msg.seq for r in recording.records
-            if r.kind == "heartbeat" and r.msg.robot == 0] == [1, 2, 3, 4, 5]
+    seqs = [r.msg.seq for r in recording.records if r.kind == "heartbeat" and r.msg.robot == 0]
+    # what the launcher published while it ran, in order, once each
+    assert len(seqs) >= 5 and seqs == sorted(set(seqs)) and set(seqs) <= set(published)
 
 
 def heartbeats_in(path: Path, robot: int = 0) -> list[int]:
