@@ -16,7 +16,6 @@ themselves and agree on it without a file to share.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
 
 import numpy as np
 
@@ -25,7 +24,7 @@ from planner.experiments.instances import grid_with_obstacles, maze_cells
 from planner.grid import expand
 from planner.maps.city import city_cells
 from planner.maps.rooms import rooms_cells
-from planner.types import BoolArray, OccupancyGrid
+from planner.types import OccupancyGrid
 
 KINDS = ("open", "obstacles", "rooms", "maze", "city")
 EXAMPLES = ("open:20x30", "obstacles:40x40:30%:7", "rooms:30x40:3", "maze:15x23:2",
@@ -52,21 +51,19 @@ def generated_world(spec: str) -> OccupancyGrid:
         return OccupancyGrid(expand(np.ones((rows, cols), dtype=bool)), name=spec)
     seed = _integer(spec, fields[-1], "seed")
     rng = np.random.default_rng(seed)
-    make: Callable[[], BoolArray]
-    if kind == "obstacles":
-        blocked = _obstacles(spec, fields[1], rows * cols)
-        make = lambda: grid_with_obstacles(rows, cols, blocked, rng)  # noqa: E731
-    elif kind == "rooms":
-        make = lambda: rooms_cells(rows, cols, rng)  # noqa: E731
-    elif kind == "maze":
-        if rows % 2 == 0 or cols % 2 == 0:
-            raise _error(spec, f"a maze has odd sides (corridor, wall, corridor...), "
-                               f"got {rows}x{cols}")
-        make = lambda: maze_cells((rows + 1) // 2, (cols + 1) // 2, rng)  # noqa: E731
-    else:
-        make = lambda: city_cells(rows, cols, rng)  # noqa: E731
-    try:
-        cells = make()
+    if kind == "maze" and (rows % 2 == 0 or cols % 2 == 0):
+        raise _error(spec, f"a maze has odd sides (corridor, wall, corridor...), got "
+                           f"{rows}x{cols}")
+    blocked = _obstacles(spec, fields[1], rows * cols) if kind == "obstacles" else 0
+    try:  # the generators' own ValueErrors (obstacles that would disconnect the map)
+        if kind == "obstacles":
+            cells = grid_with_obstacles(rows, cols, blocked, rng)
+        elif kind == "rooms":
+            cells = rooms_cells(rows, cols, rng)
+        elif kind == "maze":
+            cells = maze_cells((rows + 1) // 2, (cols + 1) // 2, rng)
+        else:
+            cells = city_cells(rows, cols, rng)
     except ValueError as exc:
         raise _error(spec, str(exc)) from exc
     return OccupancyGrid(expand(cells), name=spec)
