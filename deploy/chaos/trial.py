@@ -63,10 +63,10 @@ class Outcome:
 def classify_deaths(outcome: Outcome) -> None:
     """Split the robots lost that no fault was meant to kill into cut-off deaths (by design:
     unreachable past the lease) and false suspicions (the rest)."""
-    trial = outcome.trial
-    unmeant = [r for r in outcome.robots_lost if r not in trial.killed]
-    outcome.cut_off_deaths = [r for r in unmeant if r in trial.cut_off]
-    outcome.false_suspicions = [r for r in unmeant if r not in trial.cut_off]
+    killed, cut_off = outcome.trial.killed, outcome.trial.cut_off
+    unmeant = [r for r in outcome.robots_lost if r not in killed]
+    outcome.cut_off_deaths = [r for r in unmeant if r in cut_off]
+    outcome.false_suspicions = [r for r in unmeant if r not in cut_off]
 
 
 def free_port() -> int:
