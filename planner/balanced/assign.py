@@ -7,7 +7,10 @@ to within a cell or two, so this module builds such regions and sends the robots
 
 1. *spread seeds*: a robot's start cell is kept as a seed when it lies at least SPACING
    cells (breadth-first) from every seed kept before it; the other seeds are placed
-   farthest-point (never on an articulation cell of the area or a start cell);
+   farthest-point (never on an articulation cell of the area or a start cell). If the
+   regions of step 2 stay above the average, steps 2-4 run again from farthest-point
+   seeds alone (FAR): where the starts are spread but the map is sparse, the first set is
+   the starts again, whose regions stall;
 2. the area is partitioned from those seeds (``make``, the usual pipeline);
 3. every robot is assigned one region (``assign_regions``): a robot costs its walk to the
    region (shortest sub-cell path to its nearest sub-cell, 0 when it starts inside) plus the
@@ -37,6 +40,16 @@ from planner.grid import WorkArea
 from planner.types import Int32Array, IntArray, SubCell
 
 SPACING = 4  # cells between robot starts kept as seeds
+FAR = 1 << 20  # a spacing no two starts reach: every seed but the first is farthest-point
+# Seed sets tried in turn: starts kept where spread, then farthest-point seeds alone. On
+# rooms behind doors and 30 % obstacles, regions grown round the starts stall even when the
+# starts are spread (every start is kept at SPACING, so the seeds are the starts again);
+# farthest-point seeds give regions within a few cells of the average (docs/balanced.md).
+SPACINGS = (SPACING, FAR)
+# From this many robots a round that does not beat the best so far ends the rounds: there
+# a partition costs seconds (2.5-4.4 s at k = 100 on 120 x 120 rooms), and later rounds
+# won nothing on the maps measured; below it, later rounds do win (k = 30, issue seed 5).
+PATIENT_FROM = 49
 ASSIGN_ROUNDS = 5  # assignment + partition rounds at most (each 0.02-0.04 s of CPU at k = 30)
 # Robot-rounds the assignment may spend (rounds cost about k times more on large maps):
 # all five up to k = 120, two at k = 300, one from k = 301 on (docs/balanced.md, "Planning
@@ -57,20 +70,42 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int
     """The best partition with robots assigned to regions grown from spread seeds.
 
     ``make(starts, offsets)`` partitions the area with regions grown from ``starts`` (one
-    per robot) and ``offsets`` moves added to the loads. Rounds stop once the largest load
-    reaches ``goal``, after ASSIGN_ROUNDS, or when the robots' total walk stops shrinking
-    (the regions then no longer move towards the robots). Returns the partition and the
-    walks (start first) of the robots that start outside their region; None if none was made.
+    per robot) and ``offsets`` moves added to the loads. Each seed set of SPACINGS is tried
+    in turn (a later one only if both the best so far and the regions grown from the last
+    seeds are above ``goal``). Rounds stop once the
+    largest load reaches ``goal``, after ASSIGN_ROUNDS, when the robots' total walk stops
+    shrinking (the regions then no longer move towards the robots), or, from PATIENT_FROM
+    robots, after a round that did not beat the best. Returns the partition and the walks
+    (start first) of the robots that start outside their region; None if none was made.
     """
     base = PartitionState(area.cells, area.starts)
-    seeds = spread_seeds(base, [base.flat(cell_of(s)) for s in area.starts], SPACING)
-    if len(seeds) < base.k:
-        return None
-    state = make([sub_cells_of(base.cell(u))[0] for u in seeds], None)
     walks = Walks(area, WALK_LIMIT)
     best: tuple[PartitionState, Routes] | None = None
+    tried: set[tuple[int, ...]] = set()
+    for spacing in SPACINGS:
+        seeds = spread_seeds(base, [base.flat(cell_of(s)) for s in area.starts], spacing)
+        if len(seeds) < base.k or tuple(seeds) in tried:
+            continue
+        tried.add(tuple(seeds))
+        state = make([sub_cells_of(base.cell(u))[0] for u in seeds], None)
+        found = _rounds(area, make, goal, walks, state)
+        if found is not None and (best is None or max(found[0].load) < max(best[0].load)):
+            best = found
+        if best is not None and max(best[0].load) <= goal:
+            break
+        if state is not None and max(state.load) <= goal:
+            break  # these seeds split the map evenly: the walks are what is left, and
+            # seeds farther from the starts would only make them longer
+    return best
+
+
+def _rounds(area: WorkArea, make: MakePartition, goal: int, walks: Walks,
+            state: PartitionState | None) -> tuple[PartitionState, Routes] | None:
+    """Steps 3-4 from the regions of step 2: the best partition of the assignment rounds."""
+    k = len(area.starts)
+    best: tuple[PartitionState, Routes] | None = None
     walked = UNREACHABLE
-    for _ in range(min(ASSIGN_ROUNDS, max(1, ASSIGN_BUDGET // base.k))):
+    for _ in range(min(ASSIGN_ROUNDS, max(1, ASSIGN_BUDGET // k))):
         if state is None:
             break
         routes = entry_routes(area, state, walks)
@@ -79,12 +114,14 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int
             break
         walked = total
         starts = [routes[r][-1] if r in routes else s for r, s in enumerate(area.starts)]
-        offsets = [len(routes[r]) - 1 if r in routes else 0 for r in range(base.k)]
+        offsets = [len(routes[r]) - 1 if r in routes else 0 for r in range(k)]
         state = make(starts, offsets)
         if state is not None and (best is None or max(state.load) < max(best[0].load)):
             best = (state, routes)
             if max(state.load) <= goal:
                 break
+        elif k >= PATIENT_FROM and best is not None:
+            break
     return best
 
 
