@@ -81,9 +81,12 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int
     base = PartitionState(area.cells, area.starts)
     walks = Walks(area, WALK_LIMIT)
     best: tuple[PartitionState, Routes] | None = None
-    tried: set[tuple[int, ...]] = set()
+    starts = [base.flat(cell_of(s)) for s in area.starts]
+    # Seeds that are the start cells again would regrow the caller's first partition (no
+    # two distinct start cells within SPACING: no shared cell), which it has already made.
+    tried: set[tuple[int, ...]] = {tuple(starts)}
     for spacing in SPACINGS:
-        seeds = spread_seeds(base, [base.flat(cell_of(s)) for s in area.starts], spacing)
+        seeds = spread_seeds(base, starts, spacing)
         if len(seeds) < base.k or tuple(seeds) in tried:
             continue
         tried.add(tuple(seeds))
