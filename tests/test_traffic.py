@@ -275,6 +275,45 @@ def test_a_peer_that_walked_far_along_its_new_route_before_this_re_plan_landed_s
     assert (peer.position, peer.ahead) == (new[walked], new[walked + 1:walked + 1 + LOOK])
 
 
+def test_a_body_heard_of_again_after_many_lost_messages_is_placed_along_its_route() -> None:
+    """More Progress messages than the search window lost in a row (a link down for a few
+    seconds): the next place heard of, a heartbeat's pose or a Progress, lies past the
+    window. It used to move the body but not its progress along the route, so its next
+    places were unknown (or read from long ago) until a re-plan."""
+    cycle = corridor(16)  # sub-cells (0..1, 0..31)
+    walk = [cycle.position(s) for s in row(0, range(32))]
+    plan = Plan("opt", cycle, (RobotPlan(0, (1, 0), cycle.position((1, 0)), (), ((1, 0),)),
+                               RobotPlan(1, (0, 0), walk[0], (), tuple(cycle.at(w) for w in walk))))
+    bodies = Bodies.of_plan(plan, robot=0)
+    assert bodies.on_progress(1, 1, walk[1], 1.0)
+    far = 1 + 3 * LOOK  # Progress 2 .. far - 1 lost
+    assert bodies.on_pose(1, walk[far], 2.0)
+    peer = next(p for p in bodies.peers(()) if p.robot == 1)
+    assert (peer.position, peer.ahead) == (walk[far], tuple(walk[far + 1:far + 1 + LOOK]))
+    assert bodies.on_progress(1, far + 1, walk[far + 1], 3.0)  # and on from there
+    peer = next(p for p in bodies.peers(()) if p.robot == 1)
+    assert (peer.position, peer.ahead) == (walk[far + 1], tuple(walk[far + 2:far + 2 + LOOK]))
+
+
+def test_a_step_aside_beyond_the_window_is_not_read_as_progress() -> None:
+    """A body beside the place where it left its route stepped aside, even where its route
+    passes that sub-cell much later: its progress stays, and it is expected back."""
+    cycle = corridor(16)
+    there = [cycle.position(s) for s in row(0, range(32))]
+    back = [cycle.position(s) for s in row(1, range(31, -1, -1))]
+    walk = there + back  # along the top row and back along the bottom one
+    plan = Plan("opt", cycle, (RobotPlan(0, (1, 31), cycle.position((1, 31)), (), ((1, 31),)),
+                               RobotPlan(1, (0, 0), walk[0], (),
+                                         tuple(cycle.at(w) for w in walk))))
+    bodies = Bodies.of_plan(plan, robot=0)
+    assert bodies.on_progress(1, 1, walk[1], 1.0)
+    aside = cycle.position((1, 1))  # below walk[1]; the route comes there 61 places later
+    assert bodies.on_pose(1, aside, 2.0)
+    assert bodies.walks[1].done == 1
+    peer = next(p for p in bodies.peers(()) if p.robot == 1)
+    assert peer.position == aside and peer.ahead[:1] == (walk[1],)
+
+
 def test_a_robot_that_stepped_aside_unheard_of_is_seen_by_its_heartbeat() -> None:
     """Robot 1 opens the head-on ring by stepping aside (its fourth move), and that Progress
     is lost: robot 0 would wait for good for the body it still thinks in its way, while

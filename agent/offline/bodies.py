@@ -12,7 +12,10 @@ A Progress can be lost (message faults), and a robot that then stops moving woul
 it was before in the others' knowledge for good. Two more sources put it right: the pose of
 its heartbeats (every 0.2 s; taken when its simulated time is not older than the place
 known), and this robot's bumps (the sub-cell bumped into is held: a body not known there is
-placed there), and a re-plan places each survivor where its report said it stood.
+placed there), and a re-plan places each survivor where its report said it stood. A place
+found within the next 2 x LOOK places of its route advances it there; one next to where it
+left its route is a step aside; any other place on the rest of its route (more than 2 x
+LOOK messages lost in a row) advances it to that place's next visit.
 """
 
 from __future__ import annotations
@@ -75,8 +78,7 @@ class Bodies:
             return False
         return self._place(walk, index, sim_time)
 
-    @staticmethod
-    def _place(walk: _Walk, index: int, sim_time: float) -> bool:
+    def _place(self, walk: _Walk, index: int, sim_time: float) -> bool:
         if sim_time < walk.seen:
             return False  # older than the place known (a delayed message)
         walk.seen = sim_time
@@ -84,6 +86,16 @@ class Bodies:
         window = walk.route[walk.done:walk.done + 2 * LOOK]
         if index in window:
             walk.done += window.index(index) + 1
+            return True
+        left_at = walk.route[walk.done - 1] if walk.done else walk.base
+        if index == left_at or index in neighbours(self.cycle, left_at):
+            return True  # a step aside (or back): it returns to where it left its route
+        # Farther on than the window: more Progress messages than it holds were lost in a
+        # row, and a heartbeat (or the next Progress that got through) tells where the body
+        # is now. Read it as progress to that place's next visit on the route; a place off
+        # the route leaves its next places unknown (peers() says so).
+        if index in walk.route[walk.done:]:
+            walk.done = walk.route.index(index, walk.done) + 1
         return True
 
     def on_bump(self, index: int, dead: Collection[int]) -> bool:
