@@ -46,10 +46,13 @@ FAR = 1 << 20  # a spacing no two starts reach: every seed but the first is fart
 # starts are spread (every start is kept at SPACING, so the seeds are the starts again);
 # farthest-point seeds give regions within a few cells of the average (docs/balanced.md).
 SPACINGS = (SPACING, FAR)
-# From this many robots a round that does not beat the best so far ends the rounds: there
-# a partition costs seconds (2.5-4.4 s at k = 100 on 120 x 120 rooms), and later rounds
-# won nothing on the maps measured; below it, later rounds do win (k = 30, issue seed 5).
-PATIENT_FROM = 49
+# From this many robots the rounds stop at one whose partition cannot beat the best so far
+# (its loads average (n + its walks) / k, known before it is made). A later round with
+# shorter walks could still have won, so this can change plans: at k <= 30 it did on 5 of 80
+# instances (4 of them 1-13 moves worse), so it is not used there; from k = 100 it changed
+# none of 16 instances (rooms, 30 % obstacles, mazes, city) and spares up to two of the
+# partitions that cost 1-4 s each (city 256 x 256, k = 300, seed 0: 7.1 -> 4.6 s of CPU).
+STOP_ROUNDS_FROM = 49
 ASSIGN_ROUNDS = 5  # assignment + partition rounds at most (each 0.02-0.04 s of CPU at k = 30)
 # Robot-rounds the assignment may spend (rounds cost about k times more on large maps):
 # all five up to k = 120, two at k = 300, one from k = 301 on (docs/balanced.md, "Planning
@@ -65,18 +68,19 @@ Routes = dict[int, tuple[SubCell, ...]]
 MakePartition = Callable[[Sequence[SubCell], Sequence[int] | None], PartitionState | None]
 
 
-def assigned_partition(area: WorkArea, make: MakePartition, goal: int
+def assigned_partition(area: WorkArea, make: MakePartition, goal: int, beat: int | None = None
                        ) -> tuple[PartitionState, Routes] | None:
     """The best partition with robots assigned to regions grown from spread seeds.
 
     ``make(starts, offsets)`` partitions the area with regions grown from ``starts`` (one
     per robot) and ``offsets`` moves added to the loads. Each seed set of SPACINGS is tried
     in turn (a later one only if both the best so far and the regions grown from the last
-    seeds are above ``goal``). Rounds stop once the
-    largest load reaches ``goal``, after ASSIGN_ROUNDS, when the robots' total walk stops
-    shrinking (the regions then no longer move towards the robots), or, from PATIENT_FROM
-    robots, after a round that did not beat the best. Returns the partition and the walks
-    (start first) of the robots that start outside their region; None if none was made.
+    seeds are above ``goal``). Rounds stop once the largest load reaches ``goal``, after
+    ASSIGN_ROUNDS, when the robots' total walk stops shrinking (the regions then no longer
+    move towards the robots), or, from STOP_ROUNDS_FROM robots, at a round whose average
+    load (walks included) reaches ``beat`` (the caller's best largest load) or the best so
+    far. Returns the partition and the walks (start first) of the robots that start outside
+    their region; None if none was made.
     """
     base = PartitionState(area.cells, area.starts)
     walks = Walks(area, WALK_LIMIT)
@@ -91,7 +95,8 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int
             continue
         tried.add(tuple(seeds))
         state = make([sub_cells_of(base.cell(u))[0] for u in seeds], None)
-        found = _rounds(area, make, goal, walks, state)
+        found = _rounds(area, make, goal, walks, state,
+                        beat if best is None else max(best[0].load))
         if found is not None and (best is None or max(found[0].load) < max(best[0].load)):
             best = found
         if best is not None and max(best[0].load) <= goal:
@@ -103,7 +108,8 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int
 
 
 def _rounds(area: WorkArea, make: MakePartition, goal: int, walks: Walks,
-            state: PartitionState | None) -> tuple[PartitionState, Routes] | None:
+            state: PartitionState | None, beat: int | None
+            ) -> tuple[PartitionState, Routes] | None:
     """Steps 3-4 from the regions of step 2: the best partition of the assignment rounds."""
     k = len(area.starts)
     best: tuple[PartitionState, Routes] | None = None
@@ -115,6 +121,8 @@ def _rounds(area: WorkArea, make: MakePartition, goal: int, walks: Walks,
         total = sum(len(route) - 1 for route in routes.values())
         if total >= walked:
             break
+        if k >= STOP_ROUNDS_FROM and beat is not None and -(-(area.n + total) // k) >= beat:
+            break  # its loads average (n + walks) / k, so its largest cannot beat ``beat``
         walked = total
         starts = [routes[r][-1] if r in routes else s for r, s in enumerate(area.starts)]
         offsets = [len(routes[r]) - 1 if r in routes else 0 for r in range(k)]
@@ -123,8 +131,6 @@ def _rounds(area: WorkArea, make: MakePartition, goal: int, walks: Walks,
             best = (state, routes)
             if max(state.load) <= goal:
                 break
-        elif k >= PATIENT_FROM and best is not None:
-            break
     return best
 
 

@@ -104,7 +104,8 @@ def plan_regions(area: WorkArea, *, seed: int = 0
             best, best_routes = again, routes
     if max(best.load) > goal:
         assigned = assigned_partition(
-            area, lambda starts, offsets: _partition_state(area, seed, starts, offsets), goal)
+            area, lambda starts, offsets: _partition_state(area, seed, starts, offsets), goal,
+            max(best.load))
         if assigned is not None and max(assigned[0].load) < max(best.load):
             best, best_routes = assigned
     if max(best.load) > goal and best_routes:
