@@ -78,9 +78,10 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int, beat: int
     seeds are above ``goal``). Rounds stop once the largest load reaches ``goal``, after
     ASSIGN_ROUNDS, when the robots' total walk stops shrinking (the regions then no longer
     move towards the robots), or, from STOP_ROUNDS_FROM robots, at a round whose average
-    load (walks included) reaches ``beat`` (the caller's best largest load) or the best so
-    far. Returns the partition and the walks (start first) of the robots that start outside
-    their region; None if none was made.
+    load (walks included) reaches the largest load to beat: ``beat`` (the caller's best)
+    until a seed set has given a partition, that partition's after. Returns the partition
+    and the walks (start first) of the robots that start outside their region; None if none
+    was made.
     """
     base = PartitionState(area.cells, area.starts)
     walks = Walks(area, WALK_LIMIT)
