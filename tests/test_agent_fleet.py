@@ -25,7 +25,7 @@ from fleet_helpers import all_heard, mission_bus, mstc, start_simhw, stop_proces
 from takeover_oracle import fit_failures, ordered_walks, run_plan
 from waiting import wait_until
 
-from agent.offline.plan import compute_plan, plan_digest
+from agent.offline.plan import compute_plan
 from bus import keys
 from bus.bridge import BoundedFifo, Bus, Received
 from bus.codec import encode
@@ -41,6 +41,7 @@ from bus.messages import (
     WorldState,
     world_visits,
 )
+from planner.digest import plan_digest
 from planner.grid import work_area
 from planner.maps import resolve_world
 from planner.offline.lockstep import simulate_failures

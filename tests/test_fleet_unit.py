@@ -20,7 +20,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agent.offline.plan import compute_plan, plan_digest
+from agent.offline.plan import compute_plan
 from bus import argtypes, keys
 from bus.messages import (
     CoverEvent,
@@ -47,6 +47,7 @@ from deploy.monitor.coverage import reachable_sub_cells
 from deploy.progress import PlainProgress
 from deploy.settings import KillOrder, MissionSetup, fleet_timing, parse_kill, stall_timeout
 from deploy.summary import MissionTracker, format_summary, summarize
+from planner.digest import plan_digest
 from planner.types import OccupancyGrid
 
 # --- kill orders ----------------------------------------------------------------------------

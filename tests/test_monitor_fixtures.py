@@ -101,9 +101,11 @@ class Mission:
 
 
 def run_mission(free: np.ndarray, walks: dict[int, list[SubCell]], algo: str = "nb",
-                kill: tuple[int, int] | None = None, taker: int | None = None) -> Mission:
+                kill: tuple[int, int] | None = None, taker: int | None = None,
+                digest: str = "d" * 8) -> Mission:
     """Interleave the robots' walks one step each; ``kill=(robot, step)`` stops that robot
-    at that step (token lost, then a death notice by ``taker``, who takes over)."""
+    at that step (token lost, then a death notice by ``taker``, who takes over). Every
+    robot announces plan digest ``digest``."""
     mission = Mission(free, walks, algo)
     add = mission.add
     mission.add(keys.world(M), mission.world({r: 1 for r in walks}), "query")
@@ -111,7 +113,7 @@ def run_mission(free: np.ndarray, walks: dict[int, list[SubCell]], algo: str = "
     for r, walk in walks.items():
         seen[walk[0]] += 1
         add(keys.alive(M, r, 1), TokenChange(r, 1, True), "token")
-        add(keys.status(M, r), RobotStatus(r, 1, walk[0], algo, "d" * 8, "covering"))
+        add(keys.status(M, r), RobotStatus(r, 1, walk[0], algo, digest, "covering"))
         add(keys.sim_cover(M, r), CoverEvent(r, walk[0], 0.0, seen[walk[0]]))
         mission.log.append((r, walk[0]))
     stopped: dict[int, int] = {}

@@ -29,7 +29,7 @@ from agent.offline.bodies import Bodies
 from agent.offline.hardware import Hardware
 from agent.offline.options import OfflineOptions
 from agent.offline.peers import PeerTable
-from agent.offline.plan import compute_plan, plan_digest, robot_machine
+from agent.offline.plan import compute_plan, robot_machine
 from agent.offline.replan import ReplanBoard
 from agent.offline.runner import OfflineRunner
 from bus import keys
@@ -48,6 +48,7 @@ from bus.messages import (
     RobotStatus,
     pack_covered,
 )
+from planner.digest import plan_digest
 from planner.errors import PlannerError
 from planner.maps import resolve_world
 from planner.types import Plan

@@ -1,4 +1,4 @@
-"""The plan every agent computes for itself, and its digest.
+"""The plan every agent computes for itself, and its digest (planner.digest).
 
 Agents never exchange plans: each computes the same one from the same inputs (world, starts
 in robot-id order, algorithm, tree kind, seed) and they compare sha256 digests of a
@@ -8,10 +8,7 @@ anyone moves.
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
-
-import numpy as np
 
 from planner.algorithms import algorithm
 from planner.geometry import cell_of
@@ -39,16 +36,3 @@ def robot_machine(plan: Plan, algo: str, robot: int, *, takeover: bool = True) -
     machine, recovers from deaths."""
     machine: PlanRobot = algorithm(algo).load_machine()(plan, robot, takeover=takeover)
     return machine
-
-
-def plan_digest(plan: Plan) -> str:
-    """sha256 (hex) of the plan's canonical form: algo, cycle, and every robot's walk."""
-    h = hashlib.sha256()
-    h.update(f"mstc-plan/1 {plan.algo} n={plan.n} k={plan.k}\n".encode())
-    h.update(np.ascontiguousarray(plan.cycle.path, dtype="<i8").tobytes())
-    for rp in plan.robots:
-        legs = ",".join(f"{leg.direction.value}{leg.length}" for leg in rp.legs)
-        h.update(f"\nrobot {rp.robot} start {rp.start} at {rp.start_index} legs {legs}\n"
-                 .encode())
-        h.update(np.asarray(rp.path, dtype="<i8").tobytes())
-    return h.hexdigest()

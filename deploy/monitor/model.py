@@ -145,6 +145,8 @@ class FleetModel:
         view.incarnation = st.incarnation
         view.start = (int(st.start[0]), int(st.start[1]))
         view.algo = st.algo
+        if st.plan_digest and not view.plan_digest:
+            view.plan_digest = st.plan_digest  # the agreed plan's (a later life re-announces it)
         if not (view.dead and st.state not in ("fenced", "stopped", "left")):
             view.state = st.state
         view.done = view.done or st.state == "done"

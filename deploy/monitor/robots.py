@@ -47,6 +47,7 @@ class RobotView:
     messages: int = 0
     tree_kind: str = ""  # offline plans: the tree kind and seed from the agent's state
     seed: int = 0
+    plan_digest: str = ""  # offline plans: the digest the agent announced (its first)
 
     @property
     def moves(self) -> int:

@@ -3,7 +3,9 @@ except by moves that only lead a robot to its region (its walk-out).
 
 How long each robot's walk-out is comes from the plan itself, made again from what the record
 holds (the world, each robot's start, the seed and tree kind its agent announced): the
-planner is pure and deterministic, and the agents compared digests of that very plan. Where
+planner is pure and deterministic, and the agents compared digests of that very plan. The
+record holds those digests too: a plan made again that does not match them (a record made
+by another version of the planner) is not used, and the check is skipped with that reason. Where
 the registry's planner kept plain optimal MSTC instead (its makespan was smaller: a note
 starting with ``planner.balanced.plan.OPT_KEPT``), the robots walked opt's plan and opt's
 promise holds instead (``kept_opt``).
@@ -15,6 +17,7 @@ from collections import Counter
 
 from deploy.monitor.model import FleetModel
 from planner.algorithms import algorithm
+from planner.digest import plan_digest
 from planner.errors import PlannerError
 from planner.geometry import cell_of
 from planner.grid import work_area
@@ -39,6 +42,14 @@ def remade_plan(model: FleetModel, algo: str) -> Plan | str:
         plan: Plan = algorithm(algo).load_plan()(area, tree, algo, seed)
     except PlannerError as error:
         return f"the plan cannot be made again: {error}"
+    announced = {v.plan_digest for v in views.values() if v.plan_digest}
+    made = plan_digest(plan)
+    if announced and announced != {made}:
+        # recorded with another planner (an older version): judging the walks by this
+        # plan's walk-outs, or by whether it kept opt, would be judging another plan
+        return (f"the plan made again ({made[:12]}) is not the one the robots announced "
+                f"({', '.join(sorted(d[:12] for d in announced))}): recorded with another "
+                "planner version")
     return plan
 
 
