@@ -20,6 +20,7 @@ LOOK messages lost in a row) advances it to that place's next visit.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -94,7 +95,7 @@ class Bodies:
         # row, and a heartbeat (or the next Progress that got through) tells where the body
         # is now. Read it as progress to that place's next visit on the route; a place off
         # the route leaves its next places unknown (peers() says so).
-        if index in walk.route[walk.done:]:
+        with contextlib.suppress(ValueError):  # not on the rest of its route
             walk.done = walk.route.index(index, walk.done) + 1
         return True
 

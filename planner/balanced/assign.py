@@ -78,10 +78,9 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int, beat: int
     seeds are above ``goal``). Rounds stop once the largest load reaches ``goal``, after
     ASSIGN_ROUNDS, when the robots' total walk stops shrinking (the regions then no longer
     move towards the robots), or, from STOP_ROUNDS_FROM robots, at a round whose average
-    load (walks included) reaches the largest load to beat: ``beat`` (the caller's best)
-    until a seed set has given a partition, that partition's after. Returns the partition
-    and the walks (start first) of the robots that start outside their region; None if none
-    was made.
+    load (walks included) reaches the smaller of ``beat`` (the caller's best largest load)
+    and the best found here. Returns the partition and the walks (start first) of the
+    robots that start outside their region; None if none was made.
     """
     base = PartitionState(area.cells, area.starts)
     walks = Walks(area, WALK_LIMIT)
@@ -96,8 +95,8 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int, beat: int
             continue
         tried.add(tuple(seeds))
         state = make([sub_cells_of(base.cell(u))[0] for u in seeds], None)
-        found = _rounds(area, make, goal, walks, state,
-                        beat if best is None else max(best[0].load))
+        bar = beat if best is None else min(max(best[0].load), beat or UNREACHABLE)
+        found = _rounds(area, make, goal, walks, state, bar)
         if found is not None and (best is None or max(found[0].load) < max(best[0].load)):
             best = found
         if best is not None and max(best[0].load) <= goal:
