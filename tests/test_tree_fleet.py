@@ -197,6 +197,23 @@ def test_two_killed_robots_are_removed_and_the_survivors_finish(tmp_path: Path) 
     assert summary["verdict"] == "ok"
 
 
+PROGRESS = re.compile(r"^\[\s*[\d.]+s\] step [1-9]")  # the launcher's line past step 0
+
+
+def wait_progress(proc: subprocess.Popen[str]) -> list[str]:
+    """Read the fleet's output up to its first progress line past step 0; the lines read."""
+    assert proc.stdout is not None
+    seen: list[str] = []
+    deadline = time.monotonic() + RUN_LIMIT
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        assert line, "the fleet ended before its first step:\n" + "".join(seen)
+        seen.append(line)
+        if PROGRESS.match(line):
+            return seen
+    raise AssertionError(f"no step past 0 within {RUN_LIMIT} s:\n" + "".join(seen))
+
+
 def _fleet_json(run_dir: Path, proc: subprocess.Popen[str]) -> dict[str, Any]:
     """fleet.json of a tree fleet once every agent is in it (the launcher writes it then)."""
     deadline = time.monotonic() + RUN_LIMIT
@@ -223,13 +240,12 @@ def test_mstc_kill_and_down_act_on_a_tree_fleet(tmp_path: Path) -> None:
         info = _fleet_json(run_dir, fleet)
         assert info["kind"] == "tree" and info["robots"] == robots and info["world"] == spec
         assert {p["role"] for p in info["processes"]} == {"up", "router", "radio", "agent"}
-        # a robot killed before the first step is complete has never reported: wait for one
-        assert fleet.stdout is not None
-        while not re.search(r"step [1-9]", fleet.stdout.readline() or "step 1"):
-            pass
+        # a robot killed before the first step is complete has never reported: wait for the
+        # launcher's first progress line past step 0
+        seen = wait_progress(fleet)
         killed = subprocess.run(mstc("kill", "2", "--run-dir", str(run_dir)),
                                 capture_output=True, text=True, timeout=RUN_LIMIT)
-        assert killed.returncode == 0, killed.stderr
+        assert killed.returncode == 0, killed.stderr + "".join(seen)
         refused = subprocess.run(mstc("kill", "1", "--hw", "--run-dir", str(run_dir)),
                                  capture_output=True, text=True, timeout=RUN_LIMIT)
         assert refused.returncode == 2 and "no simulated bodies" in refused.stderr
