@@ -19,6 +19,7 @@ import contextlib
 import json
 import logging
 import os
+import sys
 import threading
 from collections.abc import AsyncIterator, Callable, Iterator, Mapping
 from contextlib import asynccontextmanager, contextmanager
@@ -306,12 +307,25 @@ def _check_secure_join(settings: ConnectionSettings) -> None:
                           f"{', '.join(plain)}")
 
 
+# Zenoh's threads take the GIL to hand each sample to the loop. With CPython's default 5 ms
+# switch interval a busy loop thread lets them in about 200 times a second; a session that
+# reads that slowly fills the router's queue towards it, and the router then holds back
+# every publisher's BLOCK traffic (docs/architecture.md, "Sessions that read slowly").
+GIL_SWITCH_INTERVAL_S = 0.0002
+
+
+def _hand_samples_over_promptly() -> None:
+    if sys.getswitchinterval() > GIL_SWITCH_INTERVAL_S:
+        sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
+
+
 class _Opener:
     """Runs the blocking ``zenoh.open`` (it waits for the router forever) in a daemon thread
     so the caller stays responsive to Ctrl-C and cancellation; a session that arrives after
     its caller gave up is closed by the thread itself."""
 
     def __init__(self, config: zenoh.Config) -> None:
+        _hand_samples_over_promptly()
         self.done = threading.Event()
         self.session: zenoh.Session | None = None
         self.error: zenoh.ZError | None = None

@@ -4,6 +4,10 @@ Zenoh threads push; the event loop pops. A burst of pushes costs one
 ``call_soon_threadsafe`` wake-up (measured ~40k msg/s against ~15k/s with one wake-up per
 sample). The lock is held only for a deque or dict operation, so Zenoh's threads never wait
 on the consumer: when the buffer is full the oldest item is dropped and reported.
+
+A wake-up hands over at most WAKE_BATCH items and schedules the next one behind whatever
+else the loop has ready: under a steady flood the handler would otherwise never return,
+and the process's timers (heartbeats, progress, timeouts) would stop with it.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ from typing import Generic, TypeVar
 
 M = TypeVar("M")
 T = TypeVar("T")
+
+WAKE_BATCH = 256  # items one wake-up hands over before the loop runs other work
 
 
 @dataclass(frozen=True)
@@ -56,6 +62,7 @@ class Inbox(Generic[T]):
         self._maxlen = policy.maxlen if isinstance(policy, BoundedFifo) else 0
         self._lock = threading.Lock()
         self._wake_pending = False
+        self._budget: int | None = None  # pops left in the running wake-up (None: outside one)
         self._wake = wake
         self._on_overflow = on_overflow
         self.closed = False
@@ -88,10 +95,24 @@ class Inbox(Generic[T]):
     def _on_wake(self) -> None:
         with self._lock:
             self._wake_pending = False
-        self._wake()
+            self._budget = WAKE_BATCH
+        try:
+            self._wake()
+        finally:
+            with self._lock:
+                self._budget = None
 
     def pop(self) -> tuple[str, T] | None:
+        """The oldest item (the newest key's, under LatestWins), or None when empty, or when
+        this wake-up has handed over WAKE_BATCH items (the rest come with the next one)."""
         with self._lock:
+            if self._budget is not None:
+                if self._budget == 0:
+                    if (self._by_key or self._fifo) and not self._wake_pending:
+                        self._wake_pending = True
+                        self._loop.call_soon(self._on_wake)
+                    return None
+                self._budget -= 1
             if self._latest:
                 if not self._by_key:
                     return None

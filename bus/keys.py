@@ -9,6 +9,7 @@ process that needs the robot back out of a received key calls :func:`parse`.
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -310,7 +311,14 @@ def _match(fam: KeyFamily, mission: str, rest: list[str]) -> ParsedKey | None:
 
 def parse(key: str) -> ParsedKey | None:
     """Parse a concrete key of this project; None if it is not one (foreign or malformed)."""
-    parts = str(key).split("/")
+    return _parse(str(key))
+
+
+# A mission has few distinct keys and every received message parses its key twice or more
+# (drop counters, the monitor's model, the recorder): a cache makes that a lookup.
+@functools.lru_cache(maxsize=4096)
+def _parse(key: str) -> ParsedKey | None:
+    parts = key.split("/")
     if len(parts) < 3 or parts[0] != ROOT or not _MISSION_RE.match(parts[1]):
         return None
     mission, rest = parts[1], parts[2:]

@@ -155,11 +155,27 @@ class FailureDetector:
 
     # --- outputs --------------------------------------------------------------------------
 
+    def _silenced(self, now: float) -> bool:
+        """Whether no peer holding a token has been heard for half the timeout, with two or
+        more of them: a router holding traffic back (docs/architecture.md, "Sessions that
+        read slowly") silences every peer at once, while robots hang one at a time. The
+        silence then counts for at most half the timeout: a peer that really hung is
+        declared dead half a timeout after the others are heard again."""
+        holding = [peer for peer in self._peers.values() if peer.token_lost_at is None]
+        if len(holding) < 2 or now - max(peer.last_seen for peer in holding) <= \
+                self.timeout / 2:
+            return False
+        for peer in holding:
+            peer.last_seen = max(peer.last_seen, now - self.timeout / 2)
+        return True
+
     def expire(self, now: float) -> list[DeathNotice]:
         """Declare dead every life whose token is gone (after the grace) or whose last sign
-        of life is older than the timeout; each death is reported once."""
+        of life is older than the timeout; each death is reported once. A silence of every
+        peer at once is not a sign of death (_silenced)."""
         if not self._connected:
             return []
+        self._silenced(now)
         notices = []
         for robot, peer in sorted(self._peers.items()):
             reason: DeathReason | None = None

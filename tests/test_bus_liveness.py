@@ -19,6 +19,7 @@ def test_silence_longer_than_timeout_is_death_reported_once() -> None:
     fd = FailureDetector(timeout=1.0, detector=9)
     fd.on_heartbeat(hb(1), now=10.0)
     fd.on_heartbeat(hb(2), now=10.5)
+    fd.on_heartbeat(hb(2), now=10.9)  # robot 2 is heard: the silence is robot 1's alone
     assert fd.expire(11.0) == []  # exactly the timeout: not yet
     notices = fd.expire(11.01)
     assert notices == [DeathNotice(1, 1, 9, "heartbeat", 11.01)]
@@ -144,22 +145,29 @@ def test_invalid_parameters() -> None:
        st.floats(0.1, 1.0))
 def test_expiry_matches_brute_force(beats: list[tuple[int, float]], timeout: float) -> None:
     """Random heartbeat gaps for robots 0..2, expire() called every 0.05 s: each robot is
-    declared dead at the first tick whose gap since its last beat exceeds the timeout."""
+    declared dead at the first tick whose gap since its last beat exceeds the timeout, where
+    a stretch in which two or more live robots are all silent counts for half the timeout at
+    most (FailureDetector._silenced), replayed tick by tick."""
     fd = FailureDetector(timeout=timeout)
     now, schedule = 0.0, []
     for robot, gap in beats:
         now += gap
         schedule.append((now, robot))
     ticks = [i * 0.05 for i in range(int((now + 2 * timeout) / 0.05) + 2)]
-    # Oracle: replay per robot on its own.
+    # Oracle: the rule replayed on plain dicts, tick by tick.
     expected: dict[int, float] = {}
-    for robot in {r for _, r in schedule}:
-        times = [t for t, r in schedule if r == robot]
-        for tick in ticks:
-            seen = [t for t in times if t <= tick]
-            if seen and tick - seen[-1] > timeout:
-                expected[robot] = tick
-                break
+    last: dict[int, float] = {}
+    for tick in ticks:
+        for t, robot in schedule:
+            if t <= tick and robot not in expected:
+                last[robot] = max(last.get(robot, t), t)
+        alive = [r for r in last if r not in expected]
+        if len(alive) >= 2 and tick - max(last[r] for r in alive) > timeout / 2:
+            for r in alive:
+                last[r] = max(last[r], tick - timeout / 2)
+        for r in alive:
+            if tick - last[r] > timeout:
+                expected[r] = tick
     got: dict[int, float] = {}
     events = iter(schedule)
     pending = next(events, None)
@@ -179,3 +187,39 @@ def test_local_stall_gives_everyone_a_fresh_timeout() -> None:
     fd.on_local_stall(now=30.0)  # we were SIGSTOPped for half a minute
     assert fd.expire(30.5) == []
     assert [n.robot for n in fd.expire(31.01)] == [1]
+
+
+def test_every_peer_silent_at_once_is_not_a_massacre() -> None:
+    """A router holding traffic back silences every peer at once: nobody is declared dead
+    while it lasts, and a peer that stays silent when the others are heard again is declared
+    half a timeout later."""
+    fd = FailureDetector(timeout=1.0, detector=0)
+    for robot in (1, 2, 3):
+        fd.on_heartbeat(hb(robot), now=0.0)
+    for tick in range(1, 60):  # six seconds of silence from everyone
+        assert fd.expire(tick * 0.1) == []
+    # the last silent tick (5.9) left everybody last heard at 5.4
+    for seq, now in enumerate((6.0, 6.1, 6.2, 6.3, 6.4), start=1):
+        fd.on_heartbeat(hb(1, seq=seq), now=now)
+        fd.on_heartbeat(hb(2, seq=seq), now=now)
+        assert fd.expire(now) == []
+    assert [n.robot for n in fd.expire(6.41)] == [3]
+    assert fd.alive() == {1: 1, 2: 1}
+
+
+def test_one_silent_peer_among_heard_ones_is_declared_on_time() -> None:
+    fd = FailureDetector(timeout=1.0, detector=0)
+    for robot in (1, 2, 3):
+        fd.on_heartbeat(hb(robot), now=0.0)
+    for tick in range(1, 11):
+        fd.on_heartbeat(hb(1, seq=tick), now=tick * 0.1)
+        fd.on_heartbeat(hb(2, seq=tick), now=tick * 0.1)
+    fd.on_heartbeat(hb(1, seq=11), now=1.0)
+    assert [n.robot for n in fd.expire(1.01)] == [3]
+
+
+def test_a_single_peer_silent_is_declared_whatever_the_cause() -> None:
+    """With one peer, its silence and a stalled router look alike: the timeout decides."""
+    fd = FailureDetector(timeout=1.0, detector=0)
+    fd.on_heartbeat(hb(1), now=0.0)
+    assert [n.robot for n in fd.expire(1.01)] == [1]

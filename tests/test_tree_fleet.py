@@ -245,7 +245,12 @@ def test_mstc_kill_and_down_act_on_a_tree_fleet(tmp_path: Path) -> None:
         seen = wait_progress(fleet)
         killed = subprocess.run(mstc("kill", "2", "--run-dir", str(run_dir)),
                                 capture_output=True, text=True, timeout=RUN_LIMIT)
-        assert killed.returncode == 0, killed.stderr + "".join(seen)
+        if killed.returncode != 0:
+            fleet.kill()
+            rest, _ = fleet.communicate(timeout=RUN_LIMIT)
+            logs = "".join(f"--- {log.name}\n{log.read_text()[-2000:]}"
+                           for log in sorted((run_dir / "logs").glob("*.log")))
+            raise AssertionError(f"{killed.stderr}fleet output:\n{''.join(seen)}{rest}{logs}")
         refused = subprocess.run(mstc("kill", "1", "--hw", "--run-dir", str(run_dir)),
                                  capture_output=True, text=True, timeout=RUN_LIMIT)
         assert refused.returncode == 2 and "no simulated bodies" in refused.stderr

@@ -36,6 +36,9 @@ from deploy.monitor.view import FeedStats, render
 
 T = TypeVar("T")
 TICK_S = 0.05
+# Records judged and written per turn of the loop: a backlog is worked off in slices, so a
+# launcher that records its own mission keeps its timers (progress, kills, timeouts) running.
+FEED_BATCH = 2000
 REFRESH_S = 0.25
 WORLD_PERIOD_S = 2.0
 RENDER_SHARE = 5.0
@@ -261,7 +264,7 @@ async def _loop(feed: LiveFeed, watcher: Watcher, stop: asyncio.Event,
         poller = group.create_task(poll(feed, world_period))
         try:
             while not stop.is_set():
-                watcher.feed(feed.drain())
+                watcher.feed(feed.drain(FEED_BATCH))
                 now = feed.clock()
                 if now >= next_refresh:
                     meter.update(now, watcher.model.kinds.total())
@@ -274,7 +277,7 @@ async def _loop(feed: LiveFeed, watcher: Watcher, stop: asyncio.Event,
                     break
                 if until_settled and watcher.settled() and not feed.queue:
                     break
-                await asyncio.sleep(TICK_S)
+                await asyncio.sleep(0 if feed.queue else TICK_S)
         finally:
             poller.cancel()
     await feed.sync()
