@@ -346,3 +346,33 @@ async def test_a_recorder_that_never_catches_up_is_named_not_waited_for_ever(
     heard = outcome.observed.transmissions
     assert heard > 0
     assert f"the recording has 0 of the {heard} reports the launcher heard" in "\n".join(said)
+
+
+async def test_a_recorder_that_lags_but_keeps_writing_is_waited_for(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A recorder behind the launcher on a busy host is waited for as long as it writes:
+    RECORDER_CATCH_UP_S bounds a stall, not the whole catch-up."""
+    from deploy import tree_fleet
+
+    monkeypatch.setattr(tree_fleet, "RECORDER_CATCH_UP_S", 0.5)
+    options = tree_fleet.TreeFleetOptions(tree="perfect:N=2,H=3", robots=2, algo="cocta",
+                                          run_dir=tmp_path / "run", mission="rec-slow")
+    link = RecorderLink()
+    said: list[str] = []
+    link.subscribed.set()
+    fleet = tree_fleet.TreeFleet(options, said.append, link)
+    family = keys.kind_of(keys.tree_outbox("m", 0))
+
+    async def slow_writer() -> None:  # 20 reports a second, never ahead of the launcher
+        while True:
+            await asyncio.sleep(0.05)
+            if link.written[family] < fleet.observer.transmissions:
+                link.written[family] += 1
+
+    async with asyncio.TaskGroup() as group:
+        writer = group.create_task(slow_writer())
+        outcome = await fleet.run()
+        writer.cancel()
+    assert outcome.ok, outcome.message
+    assert link.written[family] == outcome.observed.transmissions > 30
+    assert not any("the recording has" in line for line in said), said[-3:]
