@@ -155,27 +155,26 @@ class FailureDetector:
 
     # --- outputs --------------------------------------------------------------------------
 
-    def _silenced(self, now: float) -> bool:
-        """Whether no peer holding a token has been heard for half the timeout, with two or
-        more of them: a router holding traffic back (docs/architecture.md, "Sessions that
-        read slowly") silences every peer at once, while robots hang one at a time. The
-        silence then counts for at most half the timeout: a peer that really hung is
-        declared dead half a timeout after the others are heard again."""
+    def _forgive_a_common_silence(self, now: float) -> None:
+        """Two or more peers hold their tokens and none has been heard for half the timeout:
+        hold their silence at half the timeout. A router holding traffic back
+        (docs/architecture.md, "Sessions that read slowly") silences every peer at once,
+        while robots hang one at a time. A peer that really hung is declared dead half a
+        timeout after the others are heard again."""
         holding = [peer for peer in self._peers.values() if peer.token_lost_at is None]
         if len(holding) < 2 or now - max(peer.last_seen for peer in holding) <= \
                 self.timeout / 2:
-            return False
+            return
         for peer in holding:
             peer.last_seen = max(peer.last_seen, now - self.timeout / 2)
-        return True
 
     def expire(self, now: float) -> list[DeathNotice]:
         """Declare dead every life whose token is gone (after the grace) or whose last sign
         of life is older than the timeout; each death is reported once. A silence of every
-        peer at once is not a sign of death (_silenced)."""
+        peer at once is not a sign of death (_forgive_a_common_silence)."""
         if not self._connected:
             return []
-        self._silenced(now)
+        self._forgive_a_common_silence(now)
         notices = []
         for robot, peer in sorted(self._peers.items()):
             reason: DeathReason | None = None

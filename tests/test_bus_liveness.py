@@ -147,7 +147,7 @@ def test_expiry_matches_brute_force(beats: list[tuple[int, float]], timeout: flo
     """Random heartbeat gaps for robots 0..2, expire() called every 0.05 s: each robot is
     declared dead at the first tick whose gap since its last beat exceeds the timeout, where
     a stretch in which two or more live robots are all silent counts for half the timeout at
-    most (FailureDetector._silenced), replayed tick by tick."""
+    most (FailureDetector._forgive_a_common_silence), replayed tick by tick."""
     fd = FailureDetector(timeout=timeout)
     now, schedule = 0.0, []
     for robot, gap in beats:
