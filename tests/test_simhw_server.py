@@ -74,7 +74,17 @@ def simhw(router: str) -> Iterator[subprocess.Popen[str]]:
 @pytest.fixture
 async def bus(router: str, simhw: subprocess.Popen[str]) -> AsyncIterator[Bus]:
     async with Bus.connect(ConnectionSettings(connect=(router,), mission=MISSION)) as b:
+        await answered(b)
         yield b
+
+
+async def answered(bus: Bus, limit: float = 20.0) -> None:
+    """Return once simhw answers a query through the router. "simhw ready" says its
+    queryables are declared, not that the router routes to them yet; a first query on a
+    busy host came back empty once (CI, test_bad_admin_requests_are_refused)."""
+    async with asyncio.timeout(limit):
+        while not await bus.query(keys.world(MISSION), None, WorldState, timeout=1.0):
+            await asyncio.sleep(0.1)
 
 
 async def hw(bus: Bus, robot: int, action: str, cmd_id: int = 1,
