@@ -38,15 +38,19 @@ def start(*argv: str) -> subprocess.Popen[str]:
                             stderr=subprocess.STDOUT, text=True)
 
 
-def wait_line(proc: subprocess.Popen[str], mark: str) -> None:
+def wait_line(proc: subprocess.Popen[str], mark: str | re.Pattern[str]) -> list[str]:
+    """Read ``proc``'s output up to a line containing ``mark`` (or matching it, for a
+    pattern); the lines read, which the failure messages show."""
     assert proc.stdout is not None
+    seen: list[str] = []
     deadline = time.monotonic() + RUN_LIMIT
     while time.monotonic() < deadline:
         line = proc.stdout.readline()
-        if mark in line:
-            return
-        assert line, f"process ended before {mark!r}"
-    raise AssertionError(f"no {mark!r} within {RUN_LIMIT} s")
+        assert line, f"process ended before {mark!r}:\n" + "".join(seen)
+        seen.append(line)
+        if mark.match(line) if isinstance(mark, re.Pattern) else mark in line:
+            return seen
+    raise AssertionError(f"no {mark!r} within {RUN_LIMIT} s:\n" + "".join(seen))
 
 
 async def radio_stats(bus: Bus) -> RadioStats:
@@ -200,20 +204,6 @@ def test_two_killed_robots_are_removed_and_the_survivors_finish(tmp_path: Path) 
 PROGRESS = re.compile(r"^\[\s*[\d.]+s\] step [1-9]")  # the launcher's line past step 0
 
 
-def wait_progress(proc: subprocess.Popen[str]) -> list[str]:
-    """Read the fleet's output up to its first progress line past step 0; the lines read."""
-    assert proc.stdout is not None
-    seen: list[str] = []
-    deadline = time.monotonic() + RUN_LIMIT
-    while time.monotonic() < deadline:
-        line = proc.stdout.readline()
-        assert line, "the fleet ended before its first step:\n" + "".join(seen)
-        seen.append(line)
-        if PROGRESS.match(line):
-            return seen
-    raise AssertionError(f"no step past 0 within {RUN_LIMIT} s:\n" + "".join(seen))
-
-
 def _fleet_json(run_dir: Path, proc: subprocess.Popen[str]) -> dict[str, Any]:
     """fleet.json of a tree fleet once every agent is in it (the launcher writes it then)."""
     deadline = time.monotonic() + RUN_LIMIT
@@ -242,7 +232,7 @@ def test_mstc_kill_and_down_act_on_a_tree_fleet(tmp_path: Path) -> None:
         assert {p["role"] for p in info["processes"]} == {"up", "router", "radio", "agent"}
         # a robot killed before the first step is complete has never reported: wait for the
         # launcher's first progress line past step 0
-        seen = wait_progress(fleet)
+        seen = wait_line(fleet, PROGRESS)
         killed = subprocess.run(mstc("kill", "2", "--run-dir", str(run_dir)),
                                 capture_output=True, text=True, timeout=RUN_LIMIT)
         if killed.returncode != 0:
