@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from types import FrameType
 
 import zenoh
 
@@ -26,11 +27,38 @@ from bus.errors import RouterError
 from bus.security import acl, credentials
 
 
-def run_router(settings: ConnectionSettings, stop: threading.Event,
+class StopSignals:
+    """SIGTERM and SIGINT as a flag that a serving loop polls (``stop_signals()`` is true
+    once one came).
+
+    The handler only records the signal. Python runs handlers in the main thread between
+    two bytecodes, possibly while that thread holds a lock inside ``threading.Event.wait``:
+    a handler that set an Event waited for that lock for ever. A router signalled at such
+    a moment never exited (a test run left one behind, its main thread blocked in
+    ``Event.set`` inside the handler, inside ``Event.wait``).
+    """
+
+    SIGNALS = (signal.SIGTERM, signal.SIGINT)
+
+    def __init__(self) -> None:
+        self.received: list[int] = []
+
+    def install(self) -> None:
+        for sig in self.SIGNALS:
+            signal.signal(sig, self._on_signal)
+
+    def _on_signal(self, signum: int, frame: FrameType | None) -> None:
+        self.received.append(signum)  # list.append takes no Python-level lock
+
+    def __call__(self) -> bool:
+        return bool(self.received)
+
+
+def run_router(settings: ConnectionSettings, stopping: Callable[[], bool],
                ready: Callable[[], None] | None = None, parent: int | None = None) -> None:
-    """Serve as a router on ``settings.listen`` until ``stop`` is set (or, if ``parent`` is
-    given, until that process is no longer our parent); RouterError if the router cannot
-    start (typically: the listen port is taken)."""
+    """Serve as a router on ``settings.listen`` until ``stopping()`` is true (or, if
+    ``parent`` is given, until that process is no longer our parent); RouterError if the
+    router cannot start (typically: the listen port is taken)."""
     if settings.mode != "router":
         raise RouterError(f"run_router needs mode 'router', got {settings.mode!r}")
     config = make_zenoh_config(settings)
@@ -49,13 +77,16 @@ def run_router(settings: ConnectionSettings, stop: threading.Event,
     try:
         if ready is not None:
             ready()
-        # Event.wait with a period keeps the main thread responsive to signals.
-        while not stop.wait(0.2):
+        while not stopping():
             if parent is not None and os.getppid() != parent:
                 break
+            time.sleep(STOP_POLL_S)
     finally:
         _close_within(session, CLOSE_TIMEOUT_S)
 
+
+# How often the serving loop looks for a stop (a signal, or its parent gone).
+STOP_POLL_S = 0.2
 
 # A router holds nothing to flush; a close that has not returned by then is given up on (seen
 # once in a CI rehearsal: a router signalled right after start-up never exited).

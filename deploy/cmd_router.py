@@ -7,14 +7,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
-import signal
 import sys
-import threading
-from types import FrameType
 
 from bus.config import DEFAULT_ENDPOINT, add_connection_arguments, settings_from_args
 from bus.errors import BusError, ConfigError
-from bus.router import READY_MARK, run_router
+from bus.router import READY_MARK, StopSignals, run_router
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -36,16 +33,11 @@ def run(args: argparse.Namespace) -> int:
     except BusError as error:
         print(f"mstc router: error: {error}", file=sys.stderr)
         return 2
-    stop = threading.Event()
     parent = os.getppid() if args.exit_with_parent else None
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
+    stop_signals = StopSignals()
+    stop_signals.install()
     try:
-        run_router(settings, stop, ready=lambda: print(
+        run_router(settings, stop_signals, ready=lambda: print(
             f"{READY_MARK}, listening on {', '.join(settings.listen)}", flush=True),
             parent=parent)
     except ConfigError as error:  # a mistake in the settings, found while applying them

@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-
-from PIL import Image, UnidentifiedImageError
+from typing import TYPE_CHECKING
 
 from planner.errors import MapFormatError, MapReadError
+
+if TYPE_CHECKING:
+    from PIL import Image
 
 
 def describe(path: str | os.PathLike[str]) -> str:
@@ -42,6 +44,10 @@ def read_text(path: str | os.PathLike[str]) -> str:
 
 def read_image(path: str | os.PathLike[str]) -> Image.Image:
     """The decoded image (fully loaded, so later errors cannot surface lazily)."""
+    # Pillow is imported here, not at the top: every robot, simhw and launcher process
+    # imports planner.maps, and only image maps need it (~20 ms of each start-up).
+    from PIL import Image, UnidentifiedImageError
+
     read_bytes(path)  # the same not-found / unreadable messages as for text maps
     try:
         with Image.open(path) as image:

@@ -9,12 +9,15 @@ a robot must not plan through space nobody has seen. Pillow decodes every common
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from PIL import Image
 
 from planner.errors import MapFormatError
 from planner.types import BoolArray
+
+if TYPE_CHECKING:  # the images come from planner.maps.files, which imports Pillow when needed
+    from PIL import Image
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from planner.errors import MapFormatError
 from planner.maps.image import Thresholds
 
@@ -31,6 +29,8 @@ class RosMap:
 
 
 def _key_lines(text: str) -> dict[str, int]:
+    import yaml
+
     node = yaml.compose(text, Loader=yaml.SafeLoader)
     if not isinstance(node, yaml.MappingNode):
         return {}
@@ -38,6 +38,9 @@ def _key_lines(text: str) -> dict[str, int]:
 
 
 def _load(text: str, source: str) -> tuple[dict[str, Any], dict[str, int]]:
+    # PyYAML is imported here, not at the top, for the reason read_image gives for Pillow
+    import yaml
+
     try:
         data = yaml.safe_load(text)
         lines = _key_lines(text)
