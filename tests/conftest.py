@@ -19,9 +19,9 @@ settings.register_profile("quick", max_examples=QUICK_EXAMPLES)
 
 
 # The packages every fleet process imports. A test session starts hundreds of Python
-# processes (router, simhw, agents, launchers); where PYTHONDONTWRITEBYTECODE is set (this
-# project's CI machines set it) each of them would compile ~300 modules from source,
-# about 0.17 s of CPU a process and ~12 % of the suite's CPU on 2 cores.
+# processes (router, simhw, agents, launchers); where PYTHONDONTWRITEBYTECODE is set (the
+# development machine sets it) each of them would compile ~250 modules from source, about
+# 0.17 s of CPU a process (docs/testing.md, "Where the suite's time goes").
 PROJECT_PACKAGES = ("agent", "bus", "deploy", "planner", "simhw")
 
 
