@@ -23,6 +23,9 @@ from planner.ormstc.types import MachineConfig, Priority, SenseMode
 DEFAULT_CLAIM_WAIT = 0.25
 DEFAULT_WATCH_INTERVAL = 0.5
 DEFAULT_BUMP_BACKOFF = 0.05
+# simhw's body at time scale 1 takes 1.93 s for a step and 2.07 s for a quarter turn, so a body
+# ahead that turns and moves on holds the robot up about 4 s without being stuck
+DEFAULT_HOLD_UP = 5.0
 
 
 @dataclass(frozen=True)
@@ -34,6 +37,7 @@ class OrmstcOptions:
     priority: Priority = Priority.ID
     watch_interval: float = DEFAULT_WATCH_INTERVAL
     bump_backoff: float = DEFAULT_BUMP_BACKOFF
+    hold_up: float = DEFAULT_HOLD_UP
     announce_connections: bool = False
 
     def machine(self, config: AgentConfig, start: tuple[int, int]) -> MachineConfig:
@@ -41,7 +45,7 @@ class OrmstcOptions:
             robot=config.robot, team=config.k, start=(float(start[0]), float(start[1])),
             claim_wait=self.claim_wait, sense_mode=self.sense_mode, priority=self.priority,
             watch_interval=self.watch_interval, bump_backoff=self.bump_backoff,
-            announce_connections=self.announce_connections, seed=config.seed,
+            hold_up=self.hold_up, announce_connections=self.announce_connections, seed=config.seed,
             await_acks=True)  # messages can be lost: agent/ormstc/wire.py repairs them
 
 
@@ -67,6 +71,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--bump-backoff", type=seconds, default=DEFAULT_BUMP_BACKOFF,
                        metavar="SECONDS",
                        help="back off 1-2 x this after a bump (default %(default)s)")
+    group.add_argument("--hold-up", type=seconds, default=DEFAULT_HOLD_UP, metavar="SECONDS",
+                       help="held up this long by another body, a robot walks round a cell "
+                            "it lost or steps aside (default %(default)s)")
     group.add_argument("--announce-connections", action="store_true",
                        help="publish connection edges too (for monitors)")
 
@@ -75,4 +82,5 @@ def from_args(args: argparse.Namespace) -> OrmstcOptions:
     return OrmstcOptions(
         claim_wait=args.claim_wait, sense_mode=SenseMode(args.sense_mode),
         priority=Priority(args.priority), watch_interval=args.watch_interval,
-        bump_backoff=args.bump_backoff, announce_connections=args.announce_connections)
+        bump_backoff=args.bump_backoff, hold_up=args.hold_up,
+        announce_connections=args.announce_connections)

@@ -80,7 +80,7 @@ def _may_cut(m: Robot, cell: Cell) -> bool:
     parent = m.parent.get(cell)
     if parent is None or m.edges.get(cell, 0) != 1 << side_towards(cell, parent):
         return False  # the robot's root, or a cell with children: a passage for good
-    if cell_of(m.pos) == cell:
+    if cell_of(m.pos) == cell or cell in m.passing:
         return False
     asked = m.asked
     return not (isinstance(asked, Move) and cell_of(asked.to) == cell)

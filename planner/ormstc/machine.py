@@ -25,6 +25,7 @@ from collections.abc import Iterable
 from planner.ormstc.conflicts import settle
 from planner.ormstc.connections import Connections
 from planner.ormstc.knowledge import Knowledge
+from planner.ormstc.passage import reach
 from planner.ormstc.robot import ANSWER, FINISHED, UNTIL, WAKE, Flow
 from planner.ormstc.types import (
     AliveResult,
@@ -78,6 +79,7 @@ class OrmstcMachine:
         self.decided: dict[Cell, int] = {}  # bit per side: the DFS has dealt with it
         self.parent: dict[Cell, Cell] = {}  # own cells in the order grown -> their parent
         self.ceded: dict[Cell, int] = {}  # own cells lost in a conflict, still walked: winner
+        self.passing: set[Cell] = set()  # passages being walked round (passage.py): kept
         self.conflicts: set[tuple[Cell, int]] = set()  # (cell, other owner) resolved
         self.cut = 0  # cells given up in conflicts
         self.freed: list[int] = []  # dead robots whose cells this robot announced free
@@ -243,8 +245,10 @@ class OrmstcMachine:
                 self.moves += 1
             else:
                 self.bumps += 1
-                yield (_UNTIL, self.now + self._backoff())
-                yield from self.move_to(nxt)
+                reached, over = yield from reach(self, nxt, root)
+                if over:
+                    return None
+                nxt = reached
             r, c = nxt
             if ((r >> 1, c >> 1) == root
                     and decided.get(root, 0) >> SIDE_AT[(r & 1) << 1 | (c & 1)] & 1):
@@ -381,17 +385,17 @@ class OrmstcMachine:
         while True:
             result = yield (_ANSWER, Move(to))
             if isinstance(result, MoveResult) and result.ok:
-                self._moved(to)
+                self.moved(to)
                 return None
             self.bumps += 1
-            yield (_UNTIL, self.now + self._backoff())
+            yield (_UNTIL, self.now + self.backoff())
 
-    def _moved(self, to: SubCell) -> None:
+    def moved(self, to: SubCell) -> None:
         self._heading = _HEADING.get((to[0] - self.pos[0], to[1] - self.pos[1]))
         self.pos = to
         self.moves += 1
 
-    def _backoff(self) -> float:
+    def backoff(self) -> float:
         # paper's bump heuristic: back off for a random short time, then try again
         return self.config.bump_backoff * (1.0 + self._rng.random())
 

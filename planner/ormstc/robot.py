@@ -36,6 +36,8 @@ class Robot(Protocol):
     decided: dict[Cell, int]
     parent: dict[Cell, Cell]
     ceded: dict[Cell, int]
+    passing: set[Cell]
+    bumps: int
     conflicts: set[tuple[Cell, int]]
     cut: int
     freed: list[int]
@@ -57,5 +59,9 @@ class Robot(Protocol):
     def decide(self, cell: Cell, side: int) -> Flow: ...
 
     def move_to(self, to: SubCell) -> Flow: ...
+
+    def moved(self, to: SubCell) -> None: ...
+
+    def backoff(self) -> float: ...
 
     def ask_alive(self, robot: int) -> Flow: ...

@@ -47,6 +47,9 @@ class MachineConfig:
     priority: Priority = Priority.ID
     watch_interval: float = 10.0
     bump_backoff: float = 3.0
+    # how long a body must have held the robot up before it walks round a passage or steps
+    # aside (planner/ormstc/passage.py), besides a count of bumps
+    hold_up: float = 0.0
     announce_connections: bool = False  # broadcast ConnectionMsg (for monitors only)
     # decide a claim only once every live peer has acknowledged it (PeerAck), and let a
     # peer's later claim, edge or completion settle its earlier claims (needs in-order

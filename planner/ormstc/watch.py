@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 from planner.ormstc.connections import Link
+from planner.ormstc.passage import leave_passage
 from planner.ormstc.robot import WAKE, Flow, Robot
 from planner.ormstc.types import CompletionMsg, Done, SubCell, WithdrawalMsg
 from planner.ormstc.walk import (
@@ -32,6 +33,8 @@ def watch(m: Robot) -> Flow:
         know.changed = False
         targets, retry_at = table.targets(know, m.mine, m.now, mission_over(m))
         if not targets:
+            if cell_of(m.pos) in m.ceded:
+                yield from leave_passage(m)  # not stand where the winner's walk goes
             if not m.finished:
                 m.finished = True
                 know.completed.add(m.me)

@@ -1,0 +1,199 @@
+"""Bodies that hold each other up: a robot walks round them, steps aside, or moves out.
+
+A passage (conflicts.py) is a cell the robot lost in a conflict and still walks, because it
+stands in it or has children behind it. Its winner walks it too, and so may other robots
+that lost it, so bodies meet there. Forced collisions in the lockstep simulator found runs
+that never ended (12 of 36 000 on 4 x 4 worlds; none with these rules): four bodies in the
+four sub-cells of one passage, each waiting for the next one's sub-cell; a loser and the
+winner head-on in it; and a robot that finished in a cell another robot's walk needs,
+standing there for good.
+Three rules, all in the robot's own cells ("a body only stands in a cell its robot owns or
+claims" holds throughout):
+
+- **Walk round a passage.** Nothing in a passage is the loser's to cover or decide, so
+  when its move into a passage's sub-cell bumps ``DETOUR_AFTER`` times in a row, the loser
+  looks at its walk from that sub-cell on through the passages (no decisions there: the
+  walk only follows its own tree edges) and takes a shortest way over its own cells,
+  round the sub-cells it bumped into, to the sub-cell of that stretch from which it gets
+  to the stretch's end (the first sub-cell past the passages, or the walk's end) in the
+  fewest moves. The walk goes on from there as if it had walked the sub-cells it left out.
+- **Step aside.** A robot held up ``STEP_ASIDE_AFTER`` times in a row in its own cells
+  steps to a sub-cell of its own next to it (when there is one), backs off, and comes
+  back: the body in its way may be waiting for the sub-cell it stands on.
+- **Move out of a passage when done.** A robot that has nothing left to do and stands in a
+  passage (its start cell was lost, perhaps after it finished) moves to the nearest
+  sub-cell of a cell it still owns, if it has one, rather than stand where the winner's
+  walk goes.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Generator, Iterable
+
+from planner.ormstc.robot import ANSWER, UNTIL, Action, Flow, Robot
+from planner.ormstc.types import Cell, Move, MoveResult, SubCell
+from planner.ormstc.walk import DELTA, SIDE_AT, cell_of
+
+# Both need the robot held up for ``MachineConfig.hold_up`` too (twice that to step aside):
+# an agent backs off for tens of ms after a bump, and a body ahead may take seconds to move.
+DETOUR_AFTER = 3  # bumps in a row into one sub-cell before a way round it is looked for
+STEP_ASIDE_AFTER = 6  # bumps in a row, in the robot's own cells, before it steps aside
+AHEAD = 64  # walk sub-cells looked at from the blocked one (a passage is a few cells)
+
+
+def _side(sub: SubCell) -> int:
+    return SIDE_AT[(sub[0] & 1) << 1 | (sub[1] & 1)]
+
+
+def walk_ahead(m: Robot, blocked: SubCell, root: Cell) -> tuple[list[SubCell], bool]:
+    """The walk's sub-cells from ``blocked`` on while they are in passages, and whether the
+    last one ends the walk (re-entering ``root`` on a decided side, as ``cover`` tests).
+
+    The last sub-cell is the first one outside the passages, the walk's end, or the
+    ``AHEAD``-th. Passages decide nothing, so the walk there follows the tree edges alone.
+    """
+    bits: dict[Cell, int] = {}
+    ahead: list[SubCell] = []
+    sub = blocked
+    for _ in range(AHEAD):
+        cell, side = cell_of(sub), _side(sub)
+        decided = bits.get(cell, m.decided.get(cell, 0))
+        ahead.append(sub)
+        if cell == root and decided >> side & 1:
+            return ahead, True
+        if cell not in m.ceded:
+            return ahead, False
+        bits[cell] = decided | 1 << side
+        go = side if m.edges.get(cell, 0) >> side & 1 else (side + 1) & 3
+        sub = (sub[0] + DELTA[go][0], sub[1] + DELTA[go][1])
+    return ahead, False
+
+
+def way_round(m: Robot, goals: list[SubCell], avoid: set[SubCell], *,
+              nearest: bool = False) -> list[SubCell] | None:
+    """A shortest way from the robot's sub-cell over its own cells, round ``avoid``, to one
+    of ``goals`` (a list of sub-cells, the goal last; None if it reaches none).
+
+    ``goals`` is a stretch of the walk: the goal is the one that brings the robot to the
+    stretch's end in the fewest moves (the way there, then the walk on), the earliest on a
+    tie; with ``nearest``, simply the nearest.
+    """
+    came: dict[SubCell, SubCell | None] = {m.pos: None}
+    dist = {m.pos: 0}
+    queue = deque([m.pos])
+    while queue:
+        here = queue.popleft()
+        for dr, dc in DELTA:
+            there = (here[0] + dr, here[1] + dc)
+            if there not in came and there not in avoid and cell_of(there) in m.mine:
+                came[there] = here
+                dist[there] = dist[here] + 1
+                queue.append(there)
+    last = len(goals) - 1
+    costs = [(dist[goal] + (0 if nearest else last - index), index)
+             for index, goal in enumerate(goals) if goal in dist and goal not in avoid]
+    if not costs:
+        return None
+    best = goals[min(costs)[1]]
+    if best == m.pos:
+        return None
+    route: list[SubCell] = []
+    node: SubCell | None = best
+    while node is not None and node != m.pos:
+        route.append(node)
+        node = came[node]
+    return route[::-1]
+
+
+def _left_out(m: Robot, skipped: Iterable[SubCell]) -> None:
+    """Decide the sides of sub-cells left out, as walking them would have."""
+    for sub in skipped:
+        cell = cell_of(sub)
+        m.decided[cell] = m.decided.get(cell, 0) | 1 << _side(sub)
+
+
+def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple[SubCell, bool]]:
+    """After a bump: move on to ``nxt``, or round it when it is a passage's and stays
+    taken. Returns ``(sub-cell reached, walk over)``; the first move is tried after a
+    back-off."""
+    avoid: set[SubCell] = set()
+    route, ahead, ends = [nxt], [nxt], False
+    fails, asides, since = 1, 0, m.now  # the first bump was just before
+    hold_up = m.config.hold_up
+    try:
+        while True:
+            yield (UNTIL, m.now + m.backoff())
+            while route:
+                step = route[0]
+                result = yield (ANSWER, Move(step))
+                if not (isinstance(result, MoveResult) and result.ok):
+                    break
+                m.moved(step)
+                route.pop(0)
+                fails, since = 0, m.now
+            else:
+                goal = m.pos
+                _left_out(m, ahead[:ahead.index(goal)])
+                return goal, ends and goal == ahead[-1]
+            m.bumps += 1
+            fails += 1
+            held = m.now - since
+            if fails < DETOUR_AFTER or held < hold_up:
+                continue
+            stepping = fails >= STEP_ASIDE_AFTER and held >= 2 * hold_up
+            if cell_of(nxt) not in m.ceded:
+                aside = _aside(m, route[0], asides) if stepping else None
+                if aside is not None:
+                    route, fails, asides, since = [aside, m.pos, *route], 0, asides + 1, m.now
+                continue
+            avoid.add(route[0])
+            ahead, ends = walk_ahead(m, nxt, root)
+            m.passing = {cell_of(sub) for sub in ahead}
+            if ends and ahead == [nxt]:
+                return m.pos, True  # the walk's last step is the one held up
+            found = way_round(m, ahead, avoid)
+            if found is None and len(avoid) > 1:
+                # bodies move on: a sub-cell bumped into earlier may be free by now
+                avoid = {route[0]}
+                found = way_round(m, ahead, avoid)
+            if found is None and stepping:
+                aside = _aside(m, route[0], asides)
+                found = None if aside is None else [aside, m.pos, *route]
+                asides += 1
+            if found is not None:
+                route, fails, since = found, 0, m.now
+    finally:
+        m.passing = set()
+
+
+def _aside(m: Robot, blocked: SubCell, turn: int) -> SubCell | None:
+    """A sub-cell of the robot's own cells next to it, other than ``blocked``: out of the
+    cell it stands in first (stepping within a crowded cell frees nothing), the choice
+    turning with ``turn`` so that a robot that cannot step one way tries the next."""
+    r, c = m.pos
+    here = cell_of(m.pos)
+    free = [(r + dr, c + dc) for dr, dc in DELTA
+            if (r + dr, c + dc) != blocked and cell_of((r + dr, c + dc)) in m.mine]
+    out = [sub for sub in free if cell_of(sub) != here]
+    choices = out or free
+    return choices[turn % len(choices)] if choices else None
+
+
+def leave_passage(m: Robot) -> Flow:
+    """Out of a passage to the nearest sub-cell of a cell still owned (for a robot done)."""
+    if cell_of(m.pos) not in m.ceded:
+        return None
+    owned = [sub for cell in sorted(m.mine) if cell not in m.ceded
+             for sub in ((2 * cell[0] + dr, 2 * cell[1] + dc) for dr in (0, 1) for dc in (0, 1))]
+    for step in way_round(m, owned, set(), nearest=True) or ():
+        for _attempt in range(DETOUR_AFTER):
+            result = yield (ANSWER, Move(step))
+            if isinstance(result, MoveResult) and result.ok:
+                m.moved(step)
+                break
+            m.bumps += 1
+            yield (UNTIL, m.now + m.backoff())
+        else:
+            return None  # held up: stay, and try again when next idle
+    return None
