@@ -252,16 +252,20 @@ async def test_a_partitioned_robot_heals_and_the_mission_completes(tmp_path: Pat
 async def test_a_ci_sized_campaign_loses_no_mission(tmp_path: Path) -> None:
     from deploy.chaos.campaign import run_campaign
 
-    # Host-wide starvation would starve the test run's other worker too: it is measured by
-    # benchmarks/bench_chaos.py, not run here.
-    scenarios = tuple(s for s in SCENARIOS if s != "starve-host"
-                      and (s != "partition" or partition_problem() is None))
+    # Every scenario has a fixed test above except "kills" and "mixed"; the campaign adds
+    # those, and the faults most often at fault before (deaths from start-up on, loss, a
+    # router restart, a hang past the lease) at random times, robots and algorithms. The
+    # whole list (host-wide starvation too) is benchmarks/bench_chaos.py's (docs/chaos.md):
+    # a trial of each here made this the suite's longest test (77 s in a CI rehearsal).
+    scenarios = ("kills", "mixed", "early-kill", "loss", "router-restart", "long-hang")
+    assert set(scenarios) <= set(SCENARIOS)
     campaign = Campaign(seed=2, algos=("nb", "bt", "opt"), sizes=(2, 3), scenarios=scenarios)
     lines: list[str] = []
-    # two at a time, as operators run it (docs/chaos.md): half the suite's longest test, and
-    # its trials share the host with each other and with the other test worker
-    outcomes = await run_campaign(campaign, range(12), tmp_path, lines.append, jobs=2)
-    assert len(lines) == 12 and (tmp_path / "trials.jsonl").read_text().count("\n") == 12
+    # two at a time, as operators run it (docs/chaos.md): its trials share the host with
+    # each other and with the other test worker
+    outcomes = await run_campaign(campaign, range(6), tmp_path, lines.append, jobs=2)
+    assert len(lines) == 6 and (tmp_path / "trials.jsonl").read_text().count("\n") == 6
+    assert {o.trial.scenario for o in outcomes} == set(scenarios)
     lost = [(o.trial.describe(), o.detail) for o in outcomes if o.verdict in ("lost", "double")]
     assert not lost, lost
 
