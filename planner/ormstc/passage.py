@@ -133,8 +133,8 @@ def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple
                 route.pop(0)
                 fails, since = 0, m.now
             else:
-                goal = m.pos
-                _left_out(m, ahead[:ahead.index(goal)])
+                goal = m.pos  # nxt, or a sub-cell of the latest stretch looked at
+                _left_out(m, ahead[:ahead.index(goal)] if goal in ahead else ())
                 return goal, ends and goal == ahead[-1]
             m.bumps += 1
             fails += 1
