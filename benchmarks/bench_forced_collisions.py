@@ -1,15 +1,17 @@
 """ORMSTC under forced collisions: lockstep runs that never end, or end with two owners.
 
 Run: .venv/bin/python benchmarks/bench_forced_collisions.py [--first-seed 0] [--seeds 3000]
-     [--size 4] [--wide]
+     [--size 4] [--wide [--deaths] [--safe-window]]
 
 Every run has a claim window of one step (below the safe bound, so claims collide) and
 message delays of 1-6 steps. The default grid is the one that found the runs that never
 ended (docs/ormstc.md, "Bodies that hold each other up"): per seed, worlds of ``size`` x
 ``size`` cells, 4, 5 and 6 robots, no obstacles or 15 %, both priorities (12 runs). With
 ``--wide`` each seed draws one run from the property test's space instead (4-8 cells a
-side, 2-6 robots). Prints the runs, those that never ended (the simulator's step limit)
-and those that ended with a cell owned by two live robots, with their parameters.
+side, 2-6 robots); ``--deaths`` then also kills 1 to k - 1 robots at random steps (3-6
+robots), and ``--safe-window`` uses the simulator's safe claim window instead of one step.
+Prints the runs, those that never ended (the simulator's step limit) and those that ended
+with a cell owned by two live robots, with their parameters.
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from planner.ormstc.lockstep import LockstepSim, SimConfig
 from planner.ormstc.types import Cell, Priority
 from planner.types import OccupancyGrid, SubCell
 
-Run = tuple[int, int, int, float, Priority]  # seed, size, robots, density, priority
+# seed, size, robots, density, priority, (robot, step it dies) for each death
+Run = tuple[int, int, int, float, Priority, tuple[tuple[int, int], ...]]
 
 
 def world_of(seed: int, size: int, density: float) -> OccupancyGrid:
@@ -45,22 +48,29 @@ def starts_of(world: OccupancyGrid, k: int, seed: int) -> list[SubCell]:
              2 * int(cells[i][1]) + int(rng.integers(2))) for i in pick]
 
 
-def runs(first: int, seeds: int, size: int, wide: bool) -> Iterator[Run]:
+def runs(first: int, seeds: int, size: int, wide: bool, deaths: bool) -> Iterator[Run]:
     for seed in range(first, first + seeds):
         if wide:
             draw = random.Random(seed)
-            yield (seed, draw.randint(4, 8), draw.randint(2, 6), draw.choice([0.0, 0.15]),
-                   draw.choice(list(Priority)))
+            side = draw.randint(4, 8)
+            k = draw.randint(3 if deaths else 2, 6)
+            density, priority = draw.choice([0.0, 0.15]), draw.choice(list(Priority))
+            dead = draw.sample(range(k), draw.randint(1, k - 1)) if deaths else []
+            yield (seed, side, k, density, priority,
+                   tuple((robot, draw.randint(0, 20 * side)) for robot in dead))
             continue
         for k in (4, 5, 6):
             for density in (0.0, 0.15):
                 for priority in Priority:
-                    yield seed, size, k, density, priority
+                    yield seed, size, k, density, priority, ()
 
 
-def two_owners(sim: LockstepSim) -> bool:
+def two_owners(sim: LockstepSim, dead: set[int]) -> bool:
+    """Whether a cell is owned by two live robots."""
     owned: set[Cell] = set()
     for machine in sim.machines:
+        if machine.me in dead:
+            continue
         cells = machine.mine.difference(machine.ceded)
         if owned & cells:
             return True
@@ -75,19 +85,26 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=4, help="cells a side (default grid)")
     parser.add_argument("--wide", action="store_true",
                         help="one draw per seed from the property test's wider space")
+    parser.add_argument("--deaths", action="store_true",
+                        help="with --wide: kill 1 to k - 1 robots at random steps")
+    parser.add_argument("--safe-window", action="store_true",
+                        help="the simulator's safe claim window instead of one step")
     args = parser.parse_args()
     began = time.perf_counter()
     count, never, double = 0, [], []
-    for run in runs(args.first_seed, args.seeds, args.size, args.wide):
-        seed, size, k, density, priority = run
+    window = None if args.safe_window else 1
+    for run in runs(args.first_seed, args.seeds, args.size, args.wide, args.deaths):
+        seed, size, k, density, priority, failures = run
         world = world_of(seed, size, density)
-        sim = LockstepSim(world, starts_of(world, k, seed),
-                          SimConfig(seed=seed, delay=(1, 6), claim_wait=1, priority=priority))
+        starts = starts_of(world, k, seed)
+        failures = tuple((robot, step) for robot, step in failures if robot < len(starts))
+        sim = LockstepSim(world, starts, SimConfig(seed=seed, delay=(1, 6), claim_wait=window,
+                                                   priority=priority, failures=failures))
         result = sim.run()
         count += 1
         if not result.finished:
             never.append(run)
-        elif two_owners(sim):
+        elif two_owners(sim, set(result.deaths)):
             double.append(run)
         if count % 2000 == 0:
             print(f"  {count} runs, {len(never)} never ended, {len(double)} with two owners",
@@ -95,9 +112,9 @@ def main() -> None:
     print(f"{count} runs in {time.perf_counter() - began:.0f} s: {len(never)} never ended, "
           f"{len(double)} ended with two owners")
     for label, found in (("never ended", never), ("two owners", double)):
-        for seed, size, k, density, priority in found:
+        for seed, size, k, density, priority, failures in found:
             print(f"  {label}: seed {seed}, {size} x {size}, {k} robots, "
-                  f"density {density}, priority {priority.name}")
+                  f"density {density}, priority {priority.name}, deaths {failures}")
 
 
 if __name__ == "__main__":

@@ -286,3 +286,30 @@ def test_a_cell_handed_over_during_a_claim_wait_grows_nothing() -> None:
         loser.step()  # the claim window (1 tick) ends
     assert claimed not in m.mine, "grew from a cell handed over during the claim"
     assert all(link[0] != here for link in m.connections.links)
+
+
+# Forced collisions and deaths (benchmarks/bench_forced_collisions.py --wide --deaths): a loser
+# died in its passage, and the winner's walk needs the sub-cell its body stands on; seed,
+# cells a side, robots, priority, (robot, step it dies)
+_DEAD_BODY_IN_THE_WAY = [
+    (1113, 4, 3, Priority.ID, ((0, 20),)),
+    (86, 4, 5, Priority.ID, ((3, 12), (0, 52), (2, 58))),
+]
+
+
+@pytest.mark.parametrize(("seed", "size", "k", "priority", "deaths"), _DEAD_BODY_IN_THE_WAY)
+def test_a_dead_body_on_the_walk_in_an_own_cell_is_walked_round(
+        seed: int, size: int, k: int, priority: Priority,
+        deaths: tuple[tuple[int, int], ...]) -> None:
+    world = random_world(seed, size, size, 0.0)
+    config = SimConfig(seed=seed, delay=(1, 6), claim_wait=1, priority=priority,
+                       failures=deaths)
+    sim = LockstepSim(world, random_starts(world, k, seed), config)
+    result = sim.run()
+    assert result.finished and not missed(result).any()
+    assert max(result.bumps) >= passage.STUCK_AFTER, "nobody was held up that long"
+    with pytest.MonkeyPatch.context() as patch:  # without the last resort: never ends
+        patch.setattr(passage, "STUCK_AFTER", 10**9)
+        stuck = LockstepSim(world, random_starts(world, k, seed),
+                            replace(config, max_steps=result.steps + 2_000)).run()
+    assert not stuck.finished

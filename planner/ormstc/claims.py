@@ -60,6 +60,10 @@ class ClaimBook:
                 if robot not in dead and expires >= now]
         return max(live)[1] if live else None
 
+    def claimed_by_any(self, cell: Cell, robots: set[int] | frozenset[int]) -> bool:
+        """Whether one of ``robots`` has a claim on ``cell`` heard and not settled."""
+        return not robots.isdisjoint(self.pending.get(cell, ()))
+
     def decide(self, cell: Cell, me: int, owner: int | None,
                dead: set[int] | frozenset[int], now: float = 0.0) -> ClaimOutcome:
         """Outcome of my claim on ``cell`` at the end of its wait; forgets my claim.

@@ -280,9 +280,10 @@ class OrmstcMachine:
                 self._connect(leader, cell, other, unsure=True)
             return None  # otherwise a dead body: nobody can cover this cell
         won = yield from self._claim(cell, other)
-        if won and know.was_owned(other):
-            # its owner may have died inside it while we waited: look again before entering
-            status = yield from self._sense(cell, side, other)
+        if won and (know.was_owned(other) or know.claims.claimed_by_any(other, know.dead)):
+            # its owner, or a rival that won it and died before its tree edge came, may have
+            # died inside it while we waited: look again before entering
+            status = yield from self._sense(cell, side, other, again=True)
             won = status is CellStatus.FREE
         if won:
             self._grow(cell, side)
@@ -356,8 +357,8 @@ class OrmstcMachine:
 
     # ---- sensing, moving, liveness ----
 
-    def _sense(self, cell: Cell, side: int, target: Cell) -> Flow:
-        if target not in self.know.owners and target in self.know.free:
+    def _sense(self, cell: Cell, side: int, target: Cell, again: bool = False) -> Flow:
+        if not again and target not in self.know.owners and target in self.know.free:
             return CellStatus.FREE  # static and never owned: nobody can have died there
         cells, turn = self._look(cell, side, target)
         result = yield (_ANSWER, Sense(cells, turn))

@@ -7,7 +7,7 @@ that never ended (12 of 36 000 on 4 x 4 worlds; none with these rules): four bod
 four sub-cells of one passage, each waiting for the next one's sub-cell; a loser and the
 winner head-on in it; and a robot that finished in a cell another robot's walk needs,
 standing there for good.
-Three rules, all in the robot's own cells ("a body only stands in a cell its robot owns or
+Four rules, all in the robot's own cells ("a body only stands in a cell its robot owns or
 claims" holds throughout):
 
 - **Walk round a passage.** Nothing in a passage is the loser's to cover or decide, so
@@ -20,6 +20,12 @@ claims" holds throughout):
 - **Step aside.** A robot held up ``STEP_ASIDE_AFTER`` times in a row in its own cells
   steps to a sub-cell of its own next to it (when there is one), backs off, and comes
   back: the body in its way may be waiting for the sub-cell it stands on.
+- **Walk round a body for good in the way** (last resort). A robot held up
+  ``STUCK_AFTER`` times in all (and four hold-ups) on a sub-cell of its own whose side needs
+  no decision (decided, or facing a cell of its own or an obstacle) leaves that sub-cell
+  out as it would a passage's. A robot that died there (a loser in its passage, seen with
+  forced collisions and deaths) never moves again, and the sub-cell under a body cannot be
+  covered anyway.
 - **Move out of a passage when done.** A robot that has nothing left to do and stands in a
   passage (its start cell was lost, perhaps after it finished) moves to the nearest
   sub-cell of a cell it still owns, if it has one, rather than stand where the winner's
@@ -39,6 +45,7 @@ from planner.ormstc.walk import DELTA, SIDE_AT, cell_of
 # an agent backs off for tens of ms after a bump, and a body ahead may take seconds to move.
 DETOUR_AFTER = 3  # bumps in a row into one sub-cell before a way round it is looked for
 STEP_ASIDE_AFTER = 6  # bumps in a row, in the robot's own cells, before it steps aside
+STUCK_AFTER = 12  # bumps in all before a body in the robot's own cell is walked round
 AHEAD = 64  # walk sub-cells looked at from the blocked one (a passage is a few cells)
 
 
@@ -50,8 +57,10 @@ def walk_ahead(m: Robot, blocked: SubCell, root: Cell) -> tuple[list[SubCell], b
     """The walk's sub-cells from ``blocked`` on while they are in passages, and whether the
     last one ends the walk (re-entering ``root`` on a decided side, as ``cover`` tests).
 
-    The last sub-cell is the first one outside the passages, the walk's end, or the
-    ``AHEAD``-th. Passages decide nothing, so the walk there follows the tree edges alone.
+    The last sub-cell is the first one past ``blocked`` outside the passages, the walk's
+    end, or the ``AHEAD``-th. Passages decide nothing, so the walk there follows the tree
+    edges alone; ``blocked`` itself may be in the robot's own cell when standing on it
+    would decide nothing (``reach``'s last resort).
     """
     bits: dict[Cell, int] = {}
     ahead: list[SubCell] = []
@@ -62,8 +71,8 @@ def walk_ahead(m: Robot, blocked: SubCell, root: Cell) -> tuple[list[SubCell], b
         ahead.append(sub)
         if cell == root and decided >> side & 1:
             return ahead, True
-        if cell not in m.ceded:
-            return ahead, False
+        if cell not in m.ceded and sub != blocked:
+            return ahead, False  # the first sub-cell past the passages (and the blocked one)
         bits[cell] = decided | 1 << side
         go = side if m.edges.get(cell, 0) >> side & 1 else (side + 1) & 3
         sub = (sub[0] + DELTA[go][0], sub[1] + DELTA[go][1])
@@ -120,6 +129,7 @@ def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple
     avoid: set[SubCell] = set()
     route, ahead, ends = [nxt], [nxt], False
     fails, asides, since = 1, 0, m.now  # the first bump was just before
+    bumped, began = 1, m.now
     hold_up = m.config.hold_up
     try:
         while True:
@@ -138,11 +148,14 @@ def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple
                 return goal, ends and goal == ahead[-1]
             m.bumps += 1
             fails += 1
+            bumped += 1
             held = m.now - since
             if fails < DETOUR_AFTER or held < hold_up:
                 continue
             stepping = fails >= STEP_ASIDE_AFTER and held >= 2 * hold_up
-            if cell_of(nxt) not in m.ceded:
+            stuck = (bumped >= STUCK_AFTER and m.now - began >= 4 * hold_up
+                     and _no_decision_at(m, nxt))
+            if cell_of(nxt) not in m.ceded and not stuck:
                 aside = _aside(m, route[0], asides) if stepping else None
                 if aside is not None:
                     route, fails, asides, since = [aside, m.pos, *route], 0, asides + 1, m.now
@@ -165,6 +178,17 @@ def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple
                 route, fails, since = found, 0, m.now
     finally:
         m.passing = set()
+
+
+def _no_decision_at(m: Robot, sub: SubCell) -> bool:
+    """Whether standing on ``sub`` would decide nothing: its side is decided already, or
+    faces a cell of the robot's own or a known obstacle (then the bit is set here)."""
+    cell, side = cell_of(sub), _side(sub)
+    bits = m.decided.get(cell, 0)
+    if bits >> side & 1:
+        return True
+    other = (cell[0] + DELTA[side][0], cell[1] + DELTA[side][1])
+    return other in m.mine or other in m.know.obstacle
 
 
 def _aside(m: Robot, blocked: SubCell, turn: int) -> SubCell | None:
