@@ -123,8 +123,9 @@ def _left_out(m: Robot, skipped: Iterable[SubCell]) -> None:
 
 
 def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple[SubCell, bool]]:
-    """After a bump: move on to ``nxt``, or round it when it is a passage's and stays
-    taken. Returns ``(sub-cell reached, walk over)``; the first move is tried after a
+    """After a bump: move on to ``nxt``, stepping aside now and then, or round it when it
+    is a passage's and stays taken (or, the last resort, is taken for good and needs no
+    decision). Returns ``(sub-cell reached, walk over)``; the first move is tried after a
     back-off."""
     avoid: set[SubCell] = set()
     route, ahead, ends = [nxt], [nxt], False
