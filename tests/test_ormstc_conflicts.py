@@ -265,6 +265,7 @@ def test_bodies_held_up_in_a_passage_get_out_and_the_mission_completes(
     # the same run without passage.py's rules is one that never ends
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(passage, "DETOUR_AFTER", 10**9)
+        patch.setattr(passage, "STUCK_AFTER", 10**9)
         patch.setattr(watch, "leave_passage", _stay)
         stuck = LockstepSim(world, random_starts(world, k, seed),
                             replace(config, max_steps=result.steps + 2_000)).run()
@@ -294,6 +295,8 @@ def test_a_cell_handed_over_during_a_claim_wait_grows_nothing() -> None:
 _DEAD_BODY_IN_THE_WAY = [
     (1113, 4, 3, Priority.ID, ((0, 20),)),
     (86, 4, 5, Priority.ID, ((3, 12), (0, 52), (2, 58))),
+    (3876, 4, 3, Priority.FEWEST, ((1, 9),)),  # its side undecided: decided from beside
+    (1034, 4, 3, Priority.ID, ((0, 48), (2, 29))),  # on the way to a takeover
 ]
 
 

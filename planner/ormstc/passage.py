@@ -21,11 +21,12 @@ claims" holds throughout):
   steps to a sub-cell of its own next to it (when there is one), backs off, and comes
   back: the body in its way may be waiting for the sub-cell it stands on.
 - **Walk round a body for good in the way** (last resort). A robot held up
-  ``STUCK_AFTER`` times in all (and four hold-ups) on a sub-cell of its own whose side needs
-  no decision (decided, or facing a cell of its own or an obstacle) leaves that sub-cell
+  ``STUCK_AFTER`` times in all (and four hold-ups) on a sub-cell of its own decides that
+  sub-cell's side from where it stands, if it is still undecided, and leaves the sub-cell
   out as it would a passage's. A robot that died there (a loser in its passage, seen with
   forced collisions and deaths) never moves again, and the sub-cell under a body cannot be
   covered anyway.
+  The same holds on the way to a takeover (``walk_step``), where nothing is left out.
 - **Move out of a passage when done.** A robot that has nothing left to do and stands in a
   passage (its start cell was lost, perhaps after it finished) moves to the nearest
   sub-cell of a cell it still owns, if it has one, rather than stand where the winner's
@@ -154,8 +155,11 @@ def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple
             if fails < DETOUR_AFTER or held < hold_up:
                 continue
             stepping = fails >= STEP_ASIDE_AFTER and held >= 2 * hold_up
-            stuck = (bumped >= STUCK_AFTER and m.now - began >= 4 * hold_up
-                     and _no_decision_at(m, nxt))
+            stuck = bumped >= STUCK_AFTER and m.now - began >= 4 * hold_up
+            if stuck and not _no_decision_at(m, nxt):
+                # decide its side from here, as standing on it would have (the machine's
+                # decisions do not depend on where the body is)
+                yield from m.decide(cell_of(nxt), _side(nxt))
             if cell_of(nxt) not in m.ceded and not stuck:
                 aside = _aside(m, route[0], asides) if stepping else None
                 if aside is not None:
@@ -203,6 +207,27 @@ def _aside(m: Robot, blocked: SubCell, turn: int) -> SubCell | None:
     out = [sub for sub in free if cell_of(sub) != here]
     choices = out or free
     return choices[turn % len(choices)] if choices else None
+
+
+def walk_step(m: Robot, to: SubCell, target: SubCell) -> Flow:
+    """One step of a walk over the robot's own cells to ``target`` (watch.walk_to, on the
+    way to a takeover): a body for good in the way (held up ``STUCK_AFTER`` times and four
+    hold-ups) is walked round by a shortest way to ``target``; the cells on the way are
+    walked already, so nothing is left out."""
+    route, bumped, began = [to], 0, m.now
+    while route:
+        result = yield (ANSWER, Move(route[0]))
+        if isinstance(result, MoveResult) and result.ok:
+            m.moved(route.pop(0))
+            continue
+        m.bumps += 1
+        bumped += 1
+        if bumped >= STUCK_AFTER and m.now - began >= 4 * m.config.hold_up:
+            found = way_round(m, [target], {route[0]}, nearest=True)
+            if found is not None:
+                route, bumped, began = found, 0, m.now
+        yield (UNTIL, m.now + m.backoff())
+    return None
 
 
 def leave_passage(m: Robot) -> Flow:

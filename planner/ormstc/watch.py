@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 from planner.ormstc.connections import Link
-from planner.ormstc.passage import leave_passage
+from planner.ormstc.passage import leave_passage, walk_step
 from planner.ormstc.robot import WAKE, Flow, Robot
 from planner.ormstc.types import CompletionMsg, Done, SubCell, WithdrawalMsg
 from planner.ormstc.walk import (
@@ -99,5 +99,5 @@ def walk_to(m: Robot, target: SubCell) -> Flow:
     ahead = walk_index(m.pos, m.has_edge, n).get(target, 0)
     step = successor if ahead <= n - ahead else predecessor
     while m.pos != target and cell_of(target) in m.mine:
-        yield from m.move_to(step(m.pos, m.has_edge))
+        yield from walk_step(m, step(m.pos, m.has_edge), target)
     return None
