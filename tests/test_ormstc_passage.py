@@ -15,7 +15,7 @@ from typing import TypeVar, cast
 from planner.ormstc import passage
 from planner.ormstc.robot import ANSWER, UNTIL, Robot
 from planner.ormstc.types import Cell, MachineConfig, Move, MoveResult, SubCell
-from planner.ormstc.walk import EAST, WEST, cell_of
+from planner.ormstc.walk import EAST, WEST, cell_of, side_of
 
 A, B = (0, 0), (0, 1)
 R = TypeVar("R")
@@ -42,6 +42,9 @@ class Walker:
 
     def backoff(self) -> float:
         return 1.0
+
+    def has_edge(self, cell: Cell, side: int) -> bool:
+        return bool(self.edges.get(cell, 0) >> side & 1)
 
 
 def walker(pos: SubCell, *, ceded: bool = True, hold_up: float = 0.0) -> Walker:
@@ -102,7 +105,7 @@ def test_a_loser_held_up_in_a_passage_walks_round_once_held_up_long_enough() -> 
         assert asked == [(1, 3)] * tries + [(0, 2)], (hold_up, asked)
         assert (reached, over) == ((0, 2), False) and robot.pos == (0, 2)
         # the sub-cells left out count as walked: their sides are decided
-        assert robot.decided[B] == (1 << passage._side((1, 3))) | (1 << passage._side((0, 3)))
+        assert robot.decided[B] == (1 << side_of((1, 3))) | (1 << side_of((0, 3)))
         assert robot.passing == set(), "cells are kept from being cut only while passing"
 
 

@@ -38,9 +38,10 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Generator, Iterable
 
+from planner.geometry import sub_cells_of
 from planner.ormstc.robot import ANSWER, UNTIL, Action, Flow, Robot
 from planner.ormstc.types import Cell, Move, MoveResult, SubCell
-from planner.ormstc.walk import DELTA, SIDE_AT, cell_of
+from planner.ormstc.walk import DELTA, cell_of, neighbour, side_of, successor
 
 # Both need the robot held up for ``MachineConfig.hold_up`` too (twice that to step aside):
 # an agent backs off for tens of ms after a bump, and a body ahead may take seconds to move.
@@ -48,10 +49,6 @@ DETOUR_AFTER = 3  # bumps in a row into one sub-cell before a way round it is lo
 STEP_ASIDE_AFTER = 6  # bumps in a row, in the robot's own cells, before it steps aside
 STUCK_AFTER = 12  # bumps in all before a body in the robot's own cell is walked round
 AHEAD = 64  # walk sub-cells looked at from the blocked one (a passage is a few cells)
-
-
-def _side(sub: SubCell) -> int:
-    return SIDE_AT[(sub[0] & 1) << 1 | (sub[1] & 1)]
 
 
 def walk_ahead(m: Robot, blocked: SubCell, root: Cell) -> tuple[list[SubCell], bool]:
@@ -67,7 +64,7 @@ def walk_ahead(m: Robot, blocked: SubCell, root: Cell) -> tuple[list[SubCell], b
     ahead: list[SubCell] = []
     sub = blocked
     for _ in range(AHEAD):
-        cell, side = cell_of(sub), _side(sub)
+        cell, side = cell_of(sub), side_of(sub)
         decided = bits.get(cell, m.decided.get(cell, 0))
         ahead.append(sub)
         if cell == root and decided >> side & 1:
@@ -75,8 +72,7 @@ def walk_ahead(m: Robot, blocked: SubCell, root: Cell) -> tuple[list[SubCell], b
         if cell not in m.ceded and sub != blocked:
             return ahead, False  # the first sub-cell past the passages (and the blocked one)
         bits[cell] = decided | 1 << side
-        go = side if m.edges.get(cell, 0) >> side & 1 else (side + 1) & 3
-        sub = (sub[0] + DELTA[go][0], sub[1] + DELTA[go][1])
+        sub = successor(sub, m.has_edge)
     return ahead, False
 
 
@@ -120,7 +116,7 @@ def _left_out(m: Robot, skipped: Iterable[SubCell]) -> None:
     """Decide the sides of sub-cells left out, as walking them would have."""
     for sub in skipped:
         cell = cell_of(sub)
-        m.decided[cell] = m.decided.get(cell, 0) | 1 << _side(sub)
+        m.decided[cell] = m.decided.get(cell, 0) | 1 << side_of(sub)
 
 
 def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple[SubCell, bool]]:
@@ -159,7 +155,7 @@ def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple
             if stuck and not _no_decision_at(m, nxt):
                 # decide its side from here, as standing on it would have (the machine's
                 # decisions do not depend on where the body is)
-                yield from m.decide(cell_of(nxt), _side(nxt))
+                yield from m.decide(cell_of(nxt), side_of(nxt))
             if cell_of(nxt) not in m.ceded and not stuck:
                 aside = _aside(m, route[0], asides) if stepping else None
                 if aside is not None:
@@ -188,11 +184,11 @@ def reach(m: Robot, nxt: SubCell, root: Cell) -> Generator[Action, object, tuple
 def _no_decision_at(m: Robot, sub: SubCell) -> bool:
     """Whether standing on ``sub`` would decide nothing: its side is decided already, or
     faces a cell of the robot's own or a known obstacle (then the bit is set here)."""
-    cell, side = cell_of(sub), _side(sub)
+    cell, side = cell_of(sub), side_of(sub)
     bits = m.decided.get(cell, 0)
     if bits >> side & 1:
         return True
-    other = (cell[0] + DELTA[side][0], cell[1] + DELTA[side][1])
+    other = neighbour(cell, side)
     return other in m.mine or other in m.know.obstacle
 
 
@@ -235,7 +231,7 @@ def leave_passage(m: Robot) -> Flow:
     if cell_of(m.pos) not in m.ceded:
         return None
     owned = [sub for cell in sorted(m.mine) if cell not in m.ceded
-             for sub in ((2 * cell[0] + dr, 2 * cell[1] + dc) for dr in (0, 1) for dc in (0, 1))]
+             for sub in sub_cells_of(cell)]
     for step in way_round(m, owned, set(), nearest=True) or ():
         for _attempt in range(DETOUR_AFTER):
             result = yield (ANSWER, Move(step))
