@@ -12,8 +12,9 @@ robot per cell), against ``planner.ormstc.lockstep.simulate`` on the same world 
 coverage time in moves (most moves of any robot) distributed / lockstep, ORMSTC messages and
 bytes per robot per move (every message heard on ``ormstc/*``, bytes as encoded), the same for
 the sonar rays told to peers (``sonar/*``), and wall time; each robot's look steps (LookStep:
-steps aside and back made only to sense, which the lockstep model does not make), the looks
-from beside of all robots (their "completed" events) and the ratio without look steps.
+steps aside and back, or into a cell given up from inside and back, made only to sense, which
+the lockstep model does not make), the looks from beside and the cells given up from inside of
+all robots (their "completed" events) and the ratio without look steps.
 """
 
 from __future__ import annotations
@@ -56,6 +57,7 @@ from planner.types import OccupancyGrid, SubCell
 
 MISSION = "bench-ormstc"
 _LOOKS_BESIDE = re.compile(r"\((\d+) looks from beside\)")
+_GIVEN_UP = re.compile(r"(\d+) cells given up from inside")
 
 
 def pick_free_port() -> int:
@@ -135,11 +137,13 @@ def cell_starts(grid: OccupancyGrid, k: int, seed: int) -> tuple[SubCell, ...]:
 
 async def mission(endpoint: str, world: str, starts: tuple[SubCell, ...], name: str,
                   sonar: str, scale: float) -> tuple[WorldState, Counter[int], Counter[int], float,
-                                                     int, dict[int, int], dict[int, int],
+                                                     int, dict[int, int],
+                                                     tuple[dict[int, int], dict[int, int]],
                                                      tuple[Counter[int], Counter[int]]]:
     counts: Counter[int] = Counter()
     looks: dict[int, int] = {}  # each robot's steps made only to sense (highest LookStep seq)
     beside: dict[int, int] = {}  # each robot's looks from beside (its "completed" event)
+    given_up: dict[int, int] = {}  # each robot's cells given up from inside (the same event)
     told: Counter[int] = Counter()  # SonarRays heard per robot (not on ormstc/*), and bytes
     told_bytes: Counter[int] = Counter()
     sizes: Counter[int] = Counter()
@@ -165,6 +169,9 @@ async def mission(endpoint: str, world: str, starts: tuple[SubCell, ...], name: 
             found = _LOOKS_BESIDE.search(ev.detail) if ev.kind == "completed" else None
             if found is not None:
                 beside[ev.robot] = int(found.group(1))
+            found = _GIVEN_UP.search(ev.detail) if ev.kind == "completed" else None
+            if found is not None:
+                given_up[ev.robot] = int(found.group(1))
 
         bus.subscribe(keys.all_ormstc(name), WIRE_TYPES, heard, BoundedFifo(1 << 20))
         bus.subscribe(keys.all_look_steps(name), LookStep, looked, BoundedFifo(1 << 16))
@@ -190,7 +197,7 @@ async def mission(endpoint: str, world: str, starts: tuple[SubCell, ...], name: 
         if any(codes):
             print(f"  agent exit codes {codes}", flush=True)
     shared = sum(len(robots) > 1 for robots in owners.values())  # nobody dies here
-    return state, counts, sizes, wall, shared, looks, beside, (told, told_bytes)
+    return state, counts, sizes, wall, shared, looks, (beside, given_up), (told, told_bytes)
 
 
 def run_fleet(args: argparse.Namespace) -> None:
@@ -203,9 +210,9 @@ def run_fleet(args: argparse.Namespace) -> None:
             starts = cell_starts(grid, args.robots, args.seed + run)
             mode = SenseMode.SINGLE if args.sonar != "all" else SenseMode.ALL
             lock = simulate(grid, starts, SimConfig(sense_mode=mode))
-            state, counts, sizes, wall, shared, looks, beside, (told, told_bytes) = asyncio.run(
-                mission(endpoint, args.world, starts, f"{MISSION}-{run}", args.sonar,
-                        args.time_scale))
+            state, counts, sizes, wall, shared, looks, (beside, given_up), (told, told_bytes) = \
+                asyncio.run(mission(endpoint, args.world, starts, f"{MISSION}-{run}",
+                                    args.sonar, args.time_scale))
             moves = [t.covered - 1 for t in state.robots]
             visits = world_visits(state)
             ratio = max(moves) / lock.makespan
@@ -222,7 +229,8 @@ def run_fleet(args: argparse.Namespace) -> None:
             twice = int((visits > 1).sum())
             print(f"run {run}: starts {starts}: moves {moves} (lockstep {list(lock.moves)}), "
                   f"ratio {ratio:.3f}; look steps {[looks.get(r, 0) for r in range(len(moves))]}"
-                  f" ({sum(beside.values())} looks from beside)"
+                  f" ({sum(beside.values())} looks from beside, "
+                  f"{sum(given_up.values())} cells given up from inside)"
                   f", ratio without them {walk_ratios[-1]:.3f}; "
                   f"messages/move {statistics.mean(msgs):.2f}, "
                   f"bytes/move {statistics.mean(size):.1f}; sonar rays to peers: messages/move "

@@ -6,7 +6,7 @@ simulator."""
 from __future__ import annotations
 
 import asyncio
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from hypothesis import given, settings
@@ -93,13 +93,16 @@ class Alone:
     body: StandIn
     sonar: SonarMap
     look_steps: list[SubCell]  # the sub-cells of the published look steps
+    given_up: int  # cells the machine grew into, entered and gave up (inside.py)
 
 
 async def cover_alone(blocked: np.ndarray, start: SubCell, glances: bool,
-                      stay: bool = False) -> Alone:
-    """One robot's machine driven as agent.ormstc.driver does (``glances`` and ``stay``):
-    looks through a Looker, a glance after every move; without ``glances`` no glance,
-    without ``stay`` every look steps back at once (the earlier driver)."""
+                      stay: bool = False, inside: bool = False) -> Alone:
+    """One robot's machine driven as agent.ormstc.driver does (``glances``, ``stay`` and
+    ``inside``): looks through a Looker, a glance after every move, cells half seen entered
+    to look (planner/ormstc/inside.py); without ``glances`` no glance, without ``stay`` every
+    look steps back at once, without ``inside`` every look is from outside (earlier
+    drivers)."""
     machine = OrmstcMachine(MachineConfig(robot=0, team=1, start=(float(start[0]),
                                           float(start[1])), sense_mode=SenseMode.ALL,
                                           claim_wait=1.0))
@@ -114,8 +117,15 @@ async def cover_alone(blocked: np.ndarray, start: SubCell, glances: bool,
         answer = None
         for request in machine.step(events):
             if isinstance(request, Sense):
+                if not inside:
+                    request = replace(request, enter=False)
                 if stay:
+                    given_up = len(looker.given_up)
                     answer = await looker.sense(request, SenseMode.ALL, NOBODY)
+                    for sub in looker.given_up[given_up:]:
+                        walk[sub] -= 1  # the step into a cell given up was a look step
+                        if not walk[sub]:
+                            del walk[sub]
                 else:
                     answer = await look(looker.marked, sonar, request, SenseMode.ALL, NOBODY)
                     looker.marked.publish()
@@ -126,7 +136,7 @@ async def cover_alone(blocked: np.ndarray, start: SubCell, glances: bool,
                     await body.face(direction_to((body.pose[0], body.pose[1]), request.to))
                     moved = await body.forward()
                 answer = MoveResult(moved)
-                if moved:
+                if moved and not looker.walked(request.to):
                     walk[request.to] = walk.get(request.to, 0) + 1
                     if glances:
                         await glance(body, sonar, NOBODY)
@@ -135,7 +145,7 @@ async def cover_alone(blocked: np.ndarray, start: SubCell, glances: bool,
         assert now < 200_000, "the robot never finished"
     assert looker.marked.steps == sonar.steps == len(published)
     assert looker.home is None and not looker.marked.held
-    return Alone(walk, body, sonar, published)
+    return Alone(walk, body, sonar, published, machine.given_up)
 
 
 @settings(max_examples=25, deadline=None)
@@ -195,6 +205,51 @@ def test_staying_aside_spares_look_steps_on_builtin_worlds() -> None:
         if name == "cave":
             assert stay.sonar.steps < back.sonar.steps
         assert sum(stay.body.visits.values()) == sum(stay.walk.values()) + stay.sonar.steps
+
+
+@settings(max_examples=40, deadline=None)
+@given(worlds())
+def test_looks_from_inside_change_nothing_but_the_look_steps(
+        case: tuple[np.ndarray, SubCell]) -> None:
+    """Growing on the near half and looking from inside: the lockstep simulator's walk, and
+    every entry of a sub-cell beyond it (into a cell given up and back, or on to the next
+    sub-cell and back) a published look step."""
+    blocked, start = case
+    alone = asyncio.run(cover_alone(blocked, start, glances=True, stay=True, inside=True))
+    assert alone.body.bumps == 0
+    assert set(alone.walk) == lockstep_covered(blocked, start, SenseMode.ALL)
+    assert all(n == (2 if sub == start else 1) for sub, n in alone.walk.items())
+    for sub, entries in alone.body.visits.items():
+        assert entries == alone.walk.get(sub, 0) + alone.look_steps.count(sub), sub
+
+
+def test_a_cell_blocked_in_its_far_half_is_given_up() -> None:
+    """Cell (1, 0) has an obstacle in its east column only: seen from (1, 0) looking south
+    its near (west) column is free, so the robot grows, enters (2, 0), sees (2, 1) blocked
+    and steps back; the lockstep simulator never enters the cell."""
+    blocked = np.zeros((6, 6), dtype=bool)
+    blocked[2, 1] = True
+    alone = asyncio.run(cover_alone(blocked, (0, 0), glances=True, stay=True, inside=True))
+    assert alone.given_up >= 1 and (2, 0) in alone.look_steps
+    assert set(alone.walk) == lockstep_covered(blocked, (0, 0), SenseMode.ALL)
+    assert not {(2, 0), (2, 1), (3, 0), (3, 1)} & set(alone.walk)
+
+
+def test_looks_from_inside_spare_look_steps_on_builtin_worlds() -> None:
+    """The same walk as looking from beside (staying aside), far fewer look steps: a cell
+    the robot grows into is seen from inside on the walk's own moves (planner/ormstc/inside.py).
+    Figures in docs/ormstc.md ("Looking from inside")."""
+    for name in ("room", "cave"):
+        world = builtin_world(name)
+        r, c = (int(v) for v in np.argwhere(coarsen(world).free)[0])
+        start = (2 * r, 2 * c)
+        beside_ = asyncio.run(cover_alone(~world.free, start, glances=True, stay=True))
+        inside = asyncio.run(cover_alone(~world.free, start, glances=True, stay=True,
+                                         inside=True))
+        assert inside.walk == beside_.walk
+        assert inside.sonar.beside_looks < beside_.sonar.beside_looks
+        assert 2 * inside.sonar.steps < beside_.sonar.steps, name
+        assert (inside.given_up > 0) == (name == "cave")  # room has no part-blocked cell
 
 
 def _aside() -> tuple[StandIn, SonarMap, Looker, list[SubCell]]:

@@ -12,7 +12,7 @@ same start. A stand-in body (no processes) answers ``agent.ormstc.body.look``.
 from __future__ import annotations
 
 import asyncio
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pytest
@@ -236,7 +236,9 @@ async def run_alone(blocked: np.ndarray, start: SubCell, mode: SenseMode,
         for request in machine.step(events):
             if isinstance(request, Sense):
                 senses += 1
-                answer = await look(body, sonar, request, mode, NOBODY)
+                # looks from beside only: tests/test_ormstc_looks.py drives the looks from
+                # inside (planner/ormstc/inside.py), which need agent.ormstc.looks.Looker
+                answer = await look(body, sonar, replace(request, enter=False), mode, NOBODY)
             elif isinstance(request, Move):
                 assert body.pose is not None
                 await body.face(direction_to((body.pose[0], body.pose[1]), request.to))

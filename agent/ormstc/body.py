@@ -30,6 +30,7 @@ from agent.ormstc.sensing import (
     direction_to,
     judge,
     sensor_for,
+    sub_cells,
 )
 from bus.bridge import Bus
 from bus.messages import HwAction, HwReply, Sensor
@@ -131,6 +132,8 @@ async def look(body: Hardware, sonar: SonarMap, request: Sense, mode: SenseMode,
     pose = _pose(body)
     pos: SubCell = (pose[0], pose[1])
     here, target = cell_of(pos), request.cells[0]
+    if target == here:
+        return await look_inside(body, sonar, target, may_hold_body, stay)
     if sensor_for(pose[2], direction_to(here, target)) is None:
         await _face(body, (pose[2] + 1) % 4, sonar)  # the cell is behind
     heading = _pose(body)[2]
@@ -140,7 +143,9 @@ async def look(body: Hardware, sonar: SonarMap, request: Sense, mode: SenseMode,
     for cell, sensor in view.items():
         direction = direction_of(heading, sensor)
         status = judge(cell, pos, direction, ranges.get(sensor), sonar, may_hold_body)
-        if status is None and cell == target:
+        if status is None and cell == target and request.enter:
+            status = CellStatus.HALF  # the near half, which the walk enters, is free
+        elif status is None and cell == target:
             status = await _look_beside(body, sonar, target, pos, direction, may_hold_body,
                                         stay)
         if status is not None:
@@ -167,6 +172,51 @@ async def _look_beside(body: Hardware, sonar: SonarMap, target: Cell, pos: SubCe
         await step_back(body, sonar, pos)
     # both halves are in the memory now, so None cannot come back; if it did, never say FREE
     return CellStatus.ROBOT if status is None else status
+
+
+async def look_inside(body: Hardware, sonar: SonarMap, cell: Cell, may_hold_body: BodyTest,
+                      stay: bool = False) -> SenseResult:
+    """The status of ``cell``, which the body has just entered (planner/ormstc/inside.py).
+
+    The robot owns the cell, so no other body can be in it (module doc of
+    agent.ormstc.sensing): a sub-cell a ray shows blocked there is an obstacle. The sonars
+    read where the body stands see the far sub-cell next to it; the one diagonal to it is
+    seen from the next sub-cell of the cell, which the walk enters next when the cell is
+    free (so with ``stay`` the body is left there; the Looker counts the step).
+    """
+    def elsewhere(other: Cell) -> bool:
+        return other != cell and may_hold_body(other)
+
+    status = _inside(cell, sonar)
+    if status is None:
+        pose = _pose(body)
+        await _read(body, sonar, _ALL_SONARS, (pose[0], pose[1]), pose[2], elsewhere)
+        status = _inside(cell, sonar)
+    if status is None:
+        pose = _pose(body)
+        pos: SubCell = (pose[0], pose[1])
+        ahead = (pos[0] + HEADING_DELTA[pose[2]][0], pos[1] + HEADING_DELTA[pose[2]][1])
+        nxt = ahead if cell_of(ahead) == cell else beside(pos, (pose[2] + 1) % 4)
+        await _face(body, direction_to(pos, nxt), sonar)
+        if not await body.forward():
+            return SenseResult(((cell, CellStatus.ROBOT),))  # a body after all: give it up
+        sonar.steps += 1
+        sonar.inside_steps += 1
+        heading = _pose(body)[2]
+        await _read(body, sonar, _ALL_SONARS, nxt, heading, elsewhere)
+        status = _inside(cell, sonar)
+        if not stay:
+            await step_back(body, sonar, pos)
+    return SenseResult(((cell, CellStatus.ROBOT if status is None else status),))
+
+
+def _inside(cell: Cell, sonar: SonarMap) -> CellStatus | None:
+    subs = sub_cells(cell)
+    if any(sub in sonar.static for sub in subs):
+        return CellStatus.OBSTACLE
+    if all(sub in sonar.free for sub in subs):
+        return CellStatus.FREE
+    return None
 
 
 async def step_back(body: Hardware, sonar: SonarMap, to: SubCell) -> None:

@@ -271,6 +271,7 @@ class OrmstcAgent(BodyAgent):
         reply = await self.body.step()
         if reply.status == "ok":
             self._static_bumps = 0
+            self.looker.walked(to)  # the step back out of a cell given up is a look step
             # rays from every sub-cell walked spare looks from beside (agent.ormstc.looks)
             await glance(self.body, self.sonar, self.may_hold_body)
             return True
@@ -367,6 +368,7 @@ class OrmstcAgent(BodyAgent):
                   f"({self.resent_bytes} bytes), {machine.ack_waits} claims waited for "
                   f"acknowledgements, {self.sonar.steps} steps to look "
                   f"({self.sonar.beside_looks} looks from beside), "
+                  f"{machine.given_up} cells given up from inside, "
                   f"{self.sonar.glance_readings} readings after moves")
         if done:
             self._status("done")

@@ -11,6 +11,11 @@ walk turns to next whenever the robot does not grow into the looked-at cell (an 
 body, a lost claim), so it steps back only when the machine's next move leaves from the
 sub-cell it believes in, and otherwise the step aside was that move.
 
+The Looker also carries out looks from inside (planner/ormstc/inside.py): a Sense of the
+cell the body stands in. Its step on to the next sub-cell is held like a step aside; when
+the cell is given up, the step into it and the step back out (the machine's moves) are
+published as look steps too (:meth:`Looker.walked`).
+
 :func:`glance` reads, after a move, the sonars whose rays may cross a sub-cell never seen,
 and remembers what they show: a reading costs 0.1 s of simhw time and no motion, a look
 from beside two steps and about two turns, and the memory spares many of those
@@ -20,12 +25,13 @@ from beside two steps and about two turns, and the memory spares many of those
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 from agent.core.errors import HardwareError
 from agent.ormstc.body import Hardware, look, step_back
-from agent.ormstc.sensing import BodyTest, SonarMap, direction_of, shows_news
+from agent.ormstc.sensing import BodyTest, SonarMap, cell_of, direction_of, shows_news
 from bus.messages import Sensor
-from planner.ormstc.types import Sense, SenseMode, SenseResult, SubCell
+from planner.ormstc.types import CellStatus, Sense, SenseMode, SenseResult, SubCell
 
 _SONARS: tuple[Sensor, ...] = ("front", "left", "right")
 
@@ -42,6 +48,12 @@ class MarkedSteps:
         self._on_step = on_step
         self.steps = 0  # the look steps published
         self.held: list[SubCell] = []  # sub-cells entered, not published yet
+
+    def mark(self, sub: SubCell) -> None:
+        """Publish a step the walk made as a look step after all (a cell given up from
+        inside: the step into it and the step back, planner/ormstc/inside.py)."""
+        self.steps += 1
+        self._on_step(self.steps, sub)
 
     def publish(self, last_walked: bool = False) -> None:
         """Publish the held steps as look steps; with ``last_walked`` the last one was the
@@ -81,12 +93,19 @@ class Looker:
         self.marked = MarkedSteps(body, on_step)
         self.sonar = sonar
         self.home: SubCell | None = None  # set while the body stands beside it
+        self.came_from: SubCell | None = None  # where the body stood before the last move
+        self.back: SubCell | None = None  # the step back out of a cell given up, not made yet
+        self.given_up: list[SubCell] = []  # the sub-cells entered in cells given up
 
     async def sense(self, request: Sense, mode: SenseMode,
                     may_hold_body: BodyTest) -> SenseResult:
         pose = self.marked.pose
         if pose is None:
             raise HardwareError("the body's pose is not known yet")
+        inside = request.cells[0] == cell_of(self.home or (pose[0], pose[1]))
+        if self.home is not None and request.enter:
+            # from beside the ray crosses the half the walk does not enter: no HALF from there
+            request = replace(request, enter=False)
         # a second look while aside comes back to the same sub-cell beside, so the body is
         # always on home or one step from it (the step held, published or walked later)
         stay = self.home is None
@@ -95,12 +114,30 @@ class Looker:
         self.home = None if _sub(self.marked) == home else home
         if self.home is None:
             self.marked.publish()
+        if inside and result.statuses[0][1] is not CellStatus.FREE:
+            # the machine gives the cell up and steps back: the way in and out were looks
+            entered = self.home or (pose[0], pose[1])
+            self.marked.mark(entered)
+            self.sonar.steps += 1
+            self.back = self.came_from
+            self.given_up.append(entered)
         return result
+
+    def walked(self, to: SubCell) -> bool:
+        """After the machine's move to ``to``: True if it was a look step (the step back
+        out of a cell given up), published as one."""
+        if to != self.back:
+            return False
+        self.back = None
+        self.marked.mark(to)
+        self.sonar.steps += 1
+        return True
 
     async def settle(self, to: SubCell) -> bool:
         """Before the machine's move to ``to``: True if the body stands on ``to`` already
         (the step aside was this move), else bring it back home (a look step) for the move."""
         home, self.home = self.home, None
+        self.came_from = home or _sub(self.marked)
         if home is None:
             return False
         if _sub(self.marked) == to:

@@ -24,6 +24,7 @@ from collections.abc import Iterable
 
 from planner.ormstc.conflicts import settle
 from planner.ormstc.connections import Connections
+from planner.ormstc.inside import enter_to_look
 from planner.ormstc.knowledge import Knowledge
 from planner.ormstc.passage import reach
 from planner.ormstc.robot import ANSWER, FINISHED, UNTIL, WAKE, Flow
@@ -53,7 +54,7 @@ from planner.ormstc.types import (
     Tick,
     TreeEdgeMsg,
 )
-from planner.ormstc.walk import DELTA, SIDE_AT, cell_of, neighbour
+from planner.ormstc.walk import DELTA, SIDE_AT, cell_of, neighbour, sub_facing
 from planner.ormstc.watch import watch
 
 _ANSWER, _UNTIL, _WAKE, _FINISHED = ANSWER, UNTIL, WAKE, FINISHED  # locals of the hot loop
@@ -82,6 +83,7 @@ class OrmstcMachine:
         self.passing: set[Cell] = set()  # passages being walked round (passage.py): kept
         self.conflicts: set[tuple[Cell, int]] = set()  # (cell, other owner) resolved
         self.cut = 0  # cells given up in conflicts
+        self.given_up = 0  # cells grown into on their near half and found blocked (inside.py)
         self.freed: list[int] = []  # dead robots whose cells this robot announced free
         self.withdrawn_for: int | None = None  # the peer of the last WithdrawalMsg sent
         self.asked: Request | None = None  # the last Sense / Move / IsAlive asked
@@ -235,6 +237,9 @@ class OrmstcMachine:
                     decided[cell] = bits | 1 << side  # _decide's first exit, without a frame
                 else:
                     yield from self.decide(cell, side)
+                    if self.pos != (r, c):
+                        r, c = self.pos  # it entered the cell it grew into to look (inside.py)
+                        continue
             go = side if edges.get(cell, 0) >> side & 1 else (side + 1) & 3
             dr, dc = DELTA[go]
             nxt = (r + dr, c + dc)
@@ -271,7 +276,10 @@ class OrmstcMachine:
                     return None
             for robot in know.dead_owners(other):
                 self.release(robot)  # lines 12-14: a dead robot's cell is empty again
-        status = yield from self._sense(cell, side, other)
+        # standing on the sub-cell facing the cell, the robot can enter its near half to see
+        # the rest (inside.py); elsewhere (passage.py decides from beside) it cannot
+        enter = self.pos == sub_facing(cell, side)
+        status = yield from self._sense(cell, side, other, enter=enter)
         if status is CellStatus.OBSTACLE:
             return None
         if status is CellStatus.ROBOT:
@@ -283,10 +291,12 @@ class OrmstcMachine:
         if won and (know.was_owned(other) or know.claims.claimed_by_any(other, know.dead)):
             # its owner, or a rival that won it and died before its tree edge came, may have
             # died inside it while we waited: look again before entering
-            status = yield from self._sense(cell, side, other, again=True)
-            won = status is CellStatus.FREE
+            status = yield from self._sense(cell, side, other, again=True, enter=enter)
+            won = status is CellStatus.FREE or status is CellStatus.HALF
         if won:
             self._grow(cell, side)
+            if status is CellStatus.HALF:
+                yield from enter_to_look(self, cell, side)
         return None
 
     # ---- claims, tree edges, connections ----
@@ -357,11 +367,12 @@ class OrmstcMachine:
 
     # ---- sensing, moving, liveness ----
 
-    def _sense(self, cell: Cell, side: int, target: Cell, again: bool = False) -> Flow:
+    def _sense(self, cell: Cell, side: int, target: Cell, again: bool = False,
+               enter: bool = False) -> Flow:
         if not again and target not in self.know.owners and target in self.know.free:
             return CellStatus.FREE  # static and never owned: nobody can have died there
         cells, turn = self._look(cell, side, target)
-        result = yield (_ANSWER, Sense(cells, turn))
+        result = yield (_ANSWER, Sense(cells, turn, enter))
         return self._sensed(target, result.statuses if isinstance(result, SenseResult) else ())
 
     def _look(self, cell: Cell, side: int, target: Cell) -> tuple[tuple[Cell, ...], bool]:

@@ -40,6 +40,7 @@ class Robot(Protocol):
     bumps: int
     conflicts: set[tuple[Cell, int]]
     cut: int
+    given_up: int
     freed: list[int]
     withdrawn_for: int | None
     asked: Request | None

@@ -33,6 +33,9 @@ class CellStatus(Enum):
     FREE = "free"
     OBSTACLE = "obstacle"  # an obstacle in at least one sub-cell, or outside the world
     ROBOT = "robot"  # a robot body in at least one sub-cell (static obstacle unknown)
+    # the half the walk enters is free, the other half not seen yet: only when the Sense
+    # allowed it (``enter``); the robot then grows, enters and looks (planner/ormstc/inside.py)
+    HALF = "half"
 
 
 @dataclass(frozen=True)
@@ -62,10 +65,15 @@ class MachineConfig:
 
 @dataclass(frozen=True, slots=True)
 class Sense:
-    """Report the status of these cells (SINGLE mode: one cell, ``turn`` = look sideways)."""
+    """Report the status of these cells (SINGLE mode: one cell, ``turn`` = look sideways).
+
+    With ``enter`` the first cell may be reported HALF. A first cell that is the one the body
+    stands in (planner/ormstc/inside.py) is looked at from inside.
+    """
 
     cells: tuple[Cell, ...]
     turn: bool = False
+    enter: bool = False
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,0 +1,83 @@
+"""Looking at a cell from inside: grow into a cell half seen, enter it, see the rest.
+
+A thin sonar (agent/ormstc/sensing.py) sees one half of a neighbouring cell from where the
+robot stands: the half the walk enters when it grows into that cell. The other half used
+to be seen from the sub-cell beside, two look steps for nearly every cell a robot grew into
+(docs/ormstc.md, "Look steps in the ratio"). Here the robot claims and grows into the cell
+on its near half alone (``CellStatus.HALF``), enters that half — the walk's own next move —
+and looks at the rest from inside: one side sonar sees the far sub-cell next to the entry,
+and the step on to the second near sub-cell (the walk's move after that) shows the last
+one. A cell that turns out blocked (an obstacle that fills only part of it, or a body) is
+given up: the robot steps back and cuts the edge, as if it had seen it from outside.
+
+Safety is that of an ordinary grow: the tree edge is broadcast when the claim is won, as
+always, so the claim window's argument is unchanged (a later claim hears the edge), and the
+body only stands in a cell its robot owns. A cell given up stays owned in the peers' books
+(no message takes the edge back): nobody else can cover it either, since no robot grows
+into a cell it has not seen free, so the only effect is a tree edge into a blocked cell in
+what monitors draw. The lockstep simulator senses whole cells and never answers ``HALF``,
+so its runs are unchanged; the agents and tests/test_ormstc_looks.py drive this path.
+"""
+
+from __future__ import annotations
+
+from planner.ormstc.robot import ANSWER, Flow, Robot
+from planner.ormstc.types import Cell, CellStatus, Move, MoveResult, Sense, SenseResult
+from planner.ormstc.walk import DELTA, neighbour
+
+
+def enter_to_look(m: Robot, cell: Cell, side: int) -> Flow:
+    """After growing from ``cell`` into its neighbour on ``side`` on the near half alone:
+    enter, look at the rest, and give the neighbour up again unless it is free.
+
+    The robot stands on ``cell``'s sub-cell facing ``side`` (the caller checks). On return
+    it stands in the neighbour's entry sub-cell (free) or back where it was (given up).
+    """
+    child = neighbour(cell, side)
+    here = m.pos
+    entry = (here[0] + DELTA[side][0], here[1] + DELTA[side][1])
+    result = yield (ANSWER, Move(entry))
+    if not (isinstance(result, MoveResult) and result.ok):
+        # a body in the half seen free a moment ago: look from outside as before
+        m.bumps += 1
+        result = yield (ANSWER, Sense((child,)))
+        status = _status(m, child, result)
+        if status is not CellStatus.FREE:
+            give_up(m, cell, side)
+        return None
+    m.moved(entry)
+    result = yield (ANSWER, Sense((child,)))  # the cell the body stands in
+    if _status(m, child, result) is CellStatus.FREE:
+        return None
+    yield from m.move_to(here)
+    give_up(m, cell, side)
+    return None
+
+
+def give_up(m: Robot, cell: Cell, side: int) -> None:
+    """Undo the grow from ``cell`` into its neighbour on ``side`` (machine._grow); the side
+    stays decided, so the walk turns to the next sub-cell as for a blocked cell."""
+    child = neighbour(cell, side)
+    m.mine.discard(child)
+    m.ceded.pop(child, None)  # lost in a conflict meanwhile: its winner's anyway
+    m.parent.pop(child, None)
+    m.edges[cell] = m.edges.get(cell, 0) & ~(1 << side)
+    m.edges.pop(child, None)
+    m.decided.pop(child, None)
+    holders = m.know.owners.get(child)
+    if holders is not None and m.me in holders:
+        holders.remove(m.me)
+        if not holders:
+            del m.know.owners[child]
+    m.given_up += 1
+
+
+def _status(m: Robot, child: Cell, result: object) -> CellStatus:
+    status = CellStatus.OBSTACLE
+    if isinstance(result, SenseResult):
+        for sensed, value in result.statuses:
+            if sensed == child:
+                status = value
+    if status is not CellStatus.HALF:
+        m.know.note_sensed(child, status)
+    return status
