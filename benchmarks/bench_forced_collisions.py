@@ -1,7 +1,7 @@
 """ORMSTC under forced collisions: lockstep runs that never end, or end with two owners.
 
 Run: .venv/bin/python benchmarks/bench_forced_collisions.py [--first-seed 0] [--seeds 3000]
-     [--size 4] [--wide [--deaths] [--safe-window]]
+     [--size 4] [--wide [--deaths] [--safe-window]] [--half-sense]
 
 Every run has a claim window of one step (below the safe bound, so claims collide) and
 message delays of 1-6 steps. The default grid is the one that found the runs that never
@@ -10,8 +10,12 @@ ended (docs/ormstc.md, "Bodies that hold each other up"): per seed, worlds of ``
 ``--wide`` each seed draws one run from the property test's space instead (4-8 cells a
 side, 2-6 robots); ``--deaths`` then also kills 1 to k - 1 robots at random steps (3-6
 robots), and ``--safe-window`` uses the simulator's safe claim window instead of one step.
-Prints the runs, those that never ended (the simulator's step limit) and those that ended
-with a cell owned by two live robots, with their parameters.
+``--half-sense`` answers as a thin sonar where the machine allows it (``SimConfig.half_sense``:
+cells grown into on the half the walk enters and looked at from inside, planner/ormstc/inside.py).
+Prints the runs, those that never ended (the simulator's step limit), those that ended
+with a cell owned by two live robots and those that ended with a sub-cell missed (of the
+free cells reachable from a survivor's start, not walled off by a dead body, as
+tests/ormstc_oracles.py's ``missed``), with their parameters.
 """
 
 from __future__ import annotations
@@ -24,8 +28,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from planner.grid import coarsen, largest_component
-from planner.ormstc.lockstep import LockstepSim, SimConfig
+from planner.grid import coarsen, expand, label_components, largest_component
+from planner.ormstc.lockstep import LockstepSim, SimConfig, SimResult
 from planner.ormstc.types import Cell, Priority
 from planner.types import OccupancyGrid, SubCell
 
@@ -65,6 +69,20 @@ def runs(first: int, seeds: int, size: int, wide: bool, deaths: bool) -> Iterato
                     yield seed, size, k, density, priority, ()
 
 
+def missed(result: SimResult) -> int:
+    """Sub-cells of the free cells reachable from a survivor's start that nobody covered."""
+    free = coarsen(result.world).free.copy()
+    for robot in result.deaths:
+        r, c = result.paths[robot][-1]
+        free[r // 2, c // 2] = False
+    labels, _ = label_components(free)
+    keep = {int(labels[r // 2, c // 2]) for i, (r, c) in enumerate(result.starts)
+            if i not in result.deaths} - {0}
+    need = expand(np.isin(labels, list(keep)))
+    visited = result.visits[: need.shape[0], : need.shape[1]] > 0
+    return int((need & ~visited).sum())
+
+
 def two_owners(sim: LockstepSim, dead: set[int]) -> bool:
     """Whether a cell is owned by two live robots."""
     owned: set[Cell] = set()
@@ -89,9 +107,11 @@ def main() -> None:
                         help="with --wide: kill 1 to k - 1 robots at random steps")
     parser.add_argument("--safe-window", action="store_true",
                         help="the simulator's safe claim window instead of one step")
+    parser.add_argument("--half-sense", action="store_true",
+                        help="a thin sonar's answers: grow on half a cell, look from inside")
     args = parser.parse_args()
     began = time.perf_counter()
-    count, never, double = 0, [], []
+    count, never, double, lost = 0, [], [], []
     window = None if args.safe_window else 1
     for run in runs(args.first_seed, args.seeds, args.size, args.wide, args.deaths):
         seed, size, k, density, priority, failures = run
@@ -99,19 +119,22 @@ def main() -> None:
         starts = starts_of(world, k, seed)
         failures = tuple((robot, step) for robot, step in failures if robot < len(starts))
         sim = LockstepSim(world, starts, SimConfig(seed=seed, delay=(1, 6), claim_wait=window,
-                                                   priority=priority, failures=failures))
+                                                   priority=priority, failures=failures,
+                                                   half_sense=args.half_sense))
         result = sim.run()
         count += 1
         if not result.finished:
             never.append(run)
         elif two_owners(sim, set(result.deaths)):
             double.append(run)
+        elif missed(result):
+            lost.append(run)
         if count % 2000 == 0:
-            print(f"  {count} runs, {len(never)} never ended, {len(double)} with two owners",
-                  file=sys.stderr)
+            print(f"  {count} runs, {len(never)} never ended, {len(double)} with two owners, "
+                  f"{len(lost)} missed sub-cells", file=sys.stderr)
     print(f"{count} runs in {time.perf_counter() - began:.0f} s: {len(never)} never ended, "
-          f"{len(double)} ended with two owners")
-    for label, found in (("never ended", never), ("two owners", double)):
+          f"{len(double)} ended with two owners, {len(lost)} missed sub-cells")
+    for label, found in (("never ended", never), ("two owners", double), ("missed", lost)):
         for seed, size, k, density, priority, failures in found:
             print(f"  {label}: seed {seed}, {size} x {size}, {k} robots, "
                   f"density {density}, priority {priority.name}, deaths {failures}")

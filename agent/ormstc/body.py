@@ -117,7 +117,8 @@ _ALL_SONARS: tuple[Sensor, ...] = ("front", "left", "right")
 
 
 async def look(body: Hardware, sonar: SonarMap, request: Sense, mode: SenseMode,
-               may_hold_body: BodyTest, stay: bool = False) -> SenseResult:
+               may_hold_body: BodyTest, stay: bool = False,
+               peer_in: BodyTest | None = None) -> SenseResult:
     """The answer to ``request``: no cell is FREE unless both of its halves were seen free.
 
     The target gets an extra look from the sub-cell beside when its other half is unknown;
@@ -133,7 +134,7 @@ async def look(body: Hardware, sonar: SonarMap, request: Sense, mode: SenseMode,
     pos: SubCell = (pose[0], pose[1])
     here, target = cell_of(pos), request.cells[0]
     if target == here:
-        return await look_inside(body, sonar, target, may_hold_body, stay)
+        return await look_inside(body, sonar, target, may_hold_body, stay, peer_in)
     if sensor_for(pose[2], direction_to(here, target)) is None:
         await _face(body, (pose[2] + 1) % 4, sonar)  # the cell is behind
     heading = _pose(body)[2]
@@ -175,17 +176,20 @@ async def _look_beside(body: Hardware, sonar: SonarMap, target: Cell, pos: SubCe
 
 
 async def look_inside(body: Hardware, sonar: SonarMap, cell: Cell, may_hold_body: BodyTest,
-                      stay: bool = False) -> SenseResult:
+                      stay: bool = False, peer_in: BodyTest | None = None) -> SenseResult:
     """The status of ``cell``, which the body has just entered (planner/ormstc/inside.py).
 
-    The robot owns the cell, so no other body can be in it (module doc of
-    agent.ormstc.sensing): a sub-cell a ray shows blocked there is an obstacle. The sonars
-    read where the body stands see the far sub-cell next to it; the one diagonal to it is
-    seen from the next sub-cell of the cell, which the walk enters next when the cell is
-    free (so with ``stay`` the body is left there; the Looker counts the step).
+    The robot owns the cell, so no other body can be in it unless ``peer_in`` says a peer
+    may be (it claimed or owns the cell too, or its pose lies there: a conflict): a sub-cell
+    a ray shows blocked there is an obstacle, or else unknown (ROBOT). The sonars read where
+    the body stands see the far sub-cell next to it; the one diagonal to it is seen from
+    the next sub-cell of the cell, which the walk enters next when the cell is free (so
+    with ``stay`` the body is left there; the Looker counts the step).
     """
     def elsewhere(other: Cell) -> bool:
-        return other != cell and may_hold_body(other)
+        if other == cell:
+            return peer_in is not None and peer_in(other)
+        return may_hold_body(other)
 
     status = _inside(cell, sonar)
     if status is None:

@@ -253,8 +253,20 @@ class OrmstcAgent(BodyAgent):
 
     # --- requests -------------------------------------------------------------------------
 
+    def peer_may_be_in(self, cell: Cell) -> bool:
+        """A peer's body can stand in ``cell``, a cell this robot owns: the peer claimed or
+        owns it too (a conflict, planner/ormstc/conflicts.py), or its pose lies there."""
+        know = self.machine.know if self.machine is not None else None
+        if cell in self.peer_cells.values():
+            return True
+        if know is None:
+            return False
+        return (any(r != self.robot for r in know.owners.get(cell, ()))
+                or any(r != self.robot for r in know.claims.pending.get(cell, ())))
+
     async def sense(self, request: Sense) -> SenseResult:
-        return await self.looker.sense(request, self.options.sense_mode, self.may_hold_body)
+        return await self.looker.sense(request, self.options.sense_mode, self.may_hold_body,
+                                       self.peer_may_be_in)
 
     def _look_step(self, seq: int, cell: SubCell) -> None:
         """A step made only to sense, published so that a report does not take it for a

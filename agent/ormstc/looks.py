@@ -97,8 +97,8 @@ class Looker:
         self.back: SubCell | None = None  # the step back out of a cell given up, not made yet
         self.given_up: list[SubCell] = []  # the sub-cells entered in cells given up
 
-    async def sense(self, request: Sense, mode: SenseMode,
-                    may_hold_body: BodyTest) -> SenseResult:
+    async def sense(self, request: Sense, mode: SenseMode, may_hold_body: BodyTest,
+                    peer_in: BodyTest | None = None) -> SenseResult:
         pose = self.marked.pose
         if pose is None:
             raise HardwareError("the body's pose is not known yet")
@@ -109,7 +109,8 @@ class Looker:
         # a second look while aside comes back to the same sub-cell beside, so the body is
         # always on home or one step from it (the step held, published or walked later)
         stay = self.home is None
-        result = await look(self.marked, self.sonar, request, mode, may_hold_body, stay)
+        result = await look(self.marked, self.sonar, request, mode, may_hold_body, stay,
+                            peer_in)
         home = self.home or (pose[0], pose[1])
         self.home = None if _sub(self.marked) == home else home
         if self.home is None:

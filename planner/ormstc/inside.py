@@ -7,8 +7,14 @@ to be seen from the sub-cell beside, two look steps for nearly every cell a robo
 on its near half alone (``CellStatus.HALF``), enters that half — the walk's own next move —
 and looks at the rest from inside: one side sonar sees the far sub-cell next to the entry,
 and the step on to the second near sub-cell (the walk's move after that) shows the last
-one. A cell that turns out blocked (an obstacle that fills only part of it, or a body) is
-given up: the robot steps back and cuts the edge, as if it had seen it from outside.
+one. A cell that turns out to hold an obstacle (one that fills only part of it) or a dead
+robot's body (one that owned or claimed the cell is known dead, and no live robot else
+claims it: nobody can cover that cell) is given up: the robot steps back and cuts the
+edge, as if it had seen it from outside. Any other body is not a reason: it is a live
+rival's that grew into the same cell when messages came late (a conflict, conflicts.py,
+which the ids resolve; the rival may cede the cell to this robot's edge, so giving it up
+could leave it to nobody). The robot then steps back, looks from outside as before, and
+keeps the cell unless that look shows an obstacle.
 
 Safety is that of an ordinary grow: the tree edge is broadcast when the claim is won, as
 always, so the claim window's argument is unchanged (a later claim hears the edge), and the
@@ -37,21 +43,39 @@ def enter_to_look(m: Robot, cell: Cell, side: int) -> Flow:
     here = m.pos
     entry = (here[0] + DELTA[side][0], here[1] + DELTA[side][1])
     result = yield (ANSWER, Move(entry))
-    if not (isinstance(result, MoveResult) and result.ok):
-        # a body in the half seen free a moment ago: look from outside as before
+    if isinstance(result, MoveResult) and result.ok:
+        m.moved(entry)
+        result = yield (ANSWER, Sense((child,)))  # the cell the body stands in
+        status = _status(m, child, result)
+        if status is CellStatus.FREE:
+            return None
+        yield from m.move_to(here)
+    else:
         m.bumps += 1
+        status = CellStatus.ROBOT
+    if status is not CellStatus.OBSTACLE and not _dead_body(m, child):
+        # a body that is not a dead robot's: a rival's that grew into the cell too when
+        # messages came late (a conflict, which the ids resolve; giving the cell up could
+        # leave it to nobody, as the rival may cede it to this robot's edge). Look from
+        # outside as before; only an obstacle undoes the grow, else the walk enters as usual
         result = yield (ANSWER, Sense((child,)))
         status = _status(m, child, result)
-        if status is not CellStatus.FREE:
-            give_up(m, cell, side)
-        return None
-    m.moved(entry)
-    result = yield (ANSWER, Sense((child,)))  # the cell the body stands in
-    if _status(m, child, result) is CellStatus.FREE:
-        return None
-    yield from m.move_to(here)
+        if status is not CellStatus.OBSTACLE:
+            return None
+    # an obstacle, or a dead robot's body: nobody can cover the cell
     give_up(m, cell, side)
     return None
+
+
+def _dead_body(m: Robot, cell: Cell) -> bool:
+    """Whether a body in ``cell`` may be a dead robot's: a robot known dead owned or claimed
+    it, and no live robot but this one does."""
+    know = m.know
+    holders = know.owners.get(cell, ())
+    claims = know.claims.pending.get(cell, {})
+    if any(r != m.me and r not in know.dead for r in (*holders, *claims)):
+        return False
+    return any(r in know.dead for r in (*holders, *claims))
 
 
 def give_up(m: Robot, cell: Cell, side: int) -> None:

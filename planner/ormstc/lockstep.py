@@ -67,6 +67,10 @@ class SimConfig:
     watch_interval: float = 10.0
     announce_connections: bool = False
     kinematics: KinematicParams = RV400
+    # a thin sonar's answers where the machine allows them: HALF for a cell whose half the
+    # walk enters is free (the rest unseen), the cell a robot stands in judged from inside
+    # (planner/ormstc/inside.py); exact whole cells otherwise, as the paper's model
+    half_sense: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,8 +249,7 @@ class LockstepSim:
                 elif kind is Broadcast:
                     self._broadcast(robot, step, request)  # type: ignore[arg-type]
                 elif kind is Sense:  # answered within the step, from the ground truth
-                    reply = SenseResult(tuple([(c, self.cell_status(c))
-                                               for c in request.cells]))  # type: ignore[union-attr]
+                    reply = self._sense(robot, request)  # type: ignore[arg-type]
                 elif kind is IsAlive:
                     reply = AliveResult(request.robot,  # type: ignore[union-attr]
                                         self.alive[request.robot])  # type: ignore[union-attr]
@@ -268,6 +271,24 @@ class LockstepSim:
         if (r, c) in body or (r + 1, c) in body or (r, c + 1) in body or (r + 1, c + 1) in body:
             return CellStatus.ROBOT
         return CellStatus.FREE
+
+    def _sense(self, robot: int, request: Sense) -> SenseResult:
+        answers = [(c, self.cell_status(c)) for c in request.cells]
+        if not self.config.half_sense:
+            return SenseResult(tuple(answers))
+        here = self.pos[robot]
+        target = request.cells[0]
+        if target == (here[0] >> 1, here[1] >> 1):  # from inside: its own body aside
+            body = self.body.pop(here)
+            answers[0] = (target, self.cell_status(target))
+            self.body[here] = body
+        elif request.enter:
+            dr, dc = target[0] - (here[0] >> 1), target[1] - (here[1] >> 1)
+            near = ((here[0] + dr, here[1] + dc), (here[0] + 2 * dr, here[1] + 2 * dc))
+            if all(0 <= r < self._h and 0 <= c < self._w and self._free[r][c]
+                   and (r, c) not in self.body for r, c in near):
+                answers[0] = (target, CellStatus.HALF)
+        return SenseResult(tuple(answers))
 
     def is_alive(self, robot: int) -> bool:
         return self.alive[robot]
