@@ -119,6 +119,8 @@ def test_a_body_inside_is_no_reason_to_give_a_cell_up(
 _DEAD_BODY_INSIDE = [
     (43, 4, 5, 0.0, Priority.FEWEST, ((0, 63), (3, 77), (2, 2))),
     (3, 5, 4, 0.15, Priority.FEWEST, ((0, 60), (2, 33), (3, 70))),
+    # a live robot's old claim on the cell was taken for a rival inside
+    (11869, 6, 6, 0.15, Priority.FEWEST, ((3, 111), (4, 6))),
 ]
 
 

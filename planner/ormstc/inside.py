@@ -9,7 +9,7 @@ and looks at the rest from inside: one side sonar sees the far sub-cell next to 
 and the step on to the second near sub-cell (the walk's move after that) shows the last
 one. A cell that turns out to hold an obstacle (one that fills only part of it) or a dead
 robot's body (one that owned or claimed the cell is known dead, and no live robot else
-claims it: nobody can cover that cell) is given up: the robot steps back and cuts the
+owns it: nobody can cover that cell) is given up: the robot steps back and cuts the
 edge, as if it had seen it from outside. Any other body is not a reason: it is a live
 rival's that grew into the same cell when messages came late (a conflict, conflicts.py,
 which the ids resolve; the rival may cede the cell to this robot's edge, so giving it up
@@ -69,13 +69,14 @@ def enter_to_look(m: Robot, cell: Cell, side: int) -> Flow:
 
 def _dead_body(m: Robot, cell: Cell) -> bool:
     """Whether a body in ``cell`` may be a dead robot's: a robot known dead owned or claimed
-    it, and no live robot but this one does."""
+    it, and no live robot but this one owns it."""
     know = m.know
     holders = know.owners.get(cell, ())
-    claims = know.claims.pending.get(cell, {})
-    if any(r != m.me and r not in know.dead for r in (*holders, *claims)):
-        return False
-    return any(r in know.dead for r in (*holders, *claims))
+    if any(r != m.me and r not in know.dead for r in holders):
+        return False  # a live rival's edge came: its body, most likely
+    # a live robot's claim alone is weaker evidence than a dead owner's or claimant's: the
+    # claim may have lost, while a dead robot's body stays where it died
+    return any(r in know.dead for r in holders) or know.claims.claimed_by_any(cell, know.dead)
 
 
 def give_up(m: Robot, cell: Cell, side: int) -> None:
