@@ -21,8 +21,10 @@ always, so the claim window's argument is unchanged (a later claim hears the edg
 body only stands in a cell its robot owns. A cell given up stays owned in the peers' books
 (no message takes the edge back): nobody else can cover it either, since no robot grows
 into a cell it has not seen free, so the only effect is a tree edge into a blocked cell in
-what monitors draw. The lockstep simulator senses whole cells and never answers ``HALF``,
-so its runs are unchanged; the agents and tests/test_ormstc_looks.py drive this path.
+what monitors draw. The lockstep simulator senses whole cells and answers ``HALF`` only
+with ``SimConfig.half_sense``, so its default runs are unchanged; the agents,
+tests/test_ormstc_looks.py (the driver's code, one robot) and tests/test_ormstc_inside.py
+(the lockstep with ``half_sense``: forced collisions, deaths) drive this path.
 """
 
 from __future__ import annotations
@@ -34,7 +36,8 @@ from planner.ormstc.walk import DELTA, neighbour
 
 def enter_to_look(m: Robot, cell: Cell, side: int) -> Flow:
     """After growing from ``cell`` into its neighbour on ``side`` on the near half alone:
-    enter, look at the rest, and give the neighbour up again unless it is free.
+    enter, look at the rest, and give the neighbour up again if it holds an obstacle or a
+    dead robot's body (module doc).
 
     The robot stands on ``cell``'s sub-cell facing ``side`` (the caller checks). On return
     it stands in the neighbour's entry sub-cell (free) or back where it was (given up).
