@@ -14,8 +14,8 @@ robots), and ``--safe-window`` uses the simulator's safe claim window instead of
 cells grown into on the half the walk enters and looked at from inside, planner/ormstc/inside.py).
 Prints the runs, those that never ended (the simulator's step limit), those that ended
 with a cell owned by two live robots and those that ended with a sub-cell missed (of the
-free cells reachable from a survivor's start, not walled off by a dead body, as
-tests/ormstc_oracles.py's ``missed``), with their parameters.
+free cells reachable from a survivor's start, not walled off by a dead body:
+``deploy.repro_ormstc.missed_sub_cells``), with their parameters.
 """
 
 from __future__ import annotations
@@ -28,8 +28,9 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from planner.grid import coarsen, expand, label_components, largest_component
-from planner.ormstc.lockstep import LockstepSim, SimConfig, SimResult
+from deploy.repro_ormstc import missed_sub_cells
+from planner.grid import coarsen, largest_component
+from planner.ormstc.lockstep import LockstepSim, SimConfig
 from planner.ormstc.types import Cell, Priority
 from planner.types import OccupancyGrid, SubCell
 
@@ -67,20 +68,6 @@ def runs(first: int, seeds: int, size: int, wide: bool, deaths: bool) -> Iterato
             for density in (0.0, 0.15):
                 for priority in Priority:
                     yield seed, size, k, density, priority, ()
-
-
-def missed(result: SimResult) -> int:
-    """Sub-cells of the free cells reachable from a survivor's start that nobody covered."""
-    free = coarsen(result.world).free.copy()
-    for robot in result.deaths:
-        r, c = result.paths[robot][-1]
-        free[r // 2, c // 2] = False
-    labels, _ = label_components(free)
-    keep = {int(labels[r // 2, c // 2]) for i, (r, c) in enumerate(result.starts)
-            if i not in result.deaths} - {0}
-    need = expand(np.isin(labels, list(keep)))
-    visited = result.visits[: need.shape[0], : need.shape[1]] > 0
-    return int((need & ~visited).sum())
 
 
 def two_owners(sim: LockstepSim, dead: set[int]) -> bool:
@@ -127,7 +114,7 @@ def main() -> None:
             never.append(run)
         elif two_owners(sim, set(result.deaths)):
             double.append(run)
-        elif missed(result):
+        elif missed_sub_cells(result):
             lost.append(run)
         if count % 2000 == 0:
             print(f"  {count} runs, {len(never)} never ended, {len(double)} with two owners, "

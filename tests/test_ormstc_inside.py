@@ -3,7 +3,8 @@ into a cell on the half the walk enters, enter it and look at the rest from insi
 
 The oracle is the same simulator with whole-cell sensing (the paper's model) and the
 world's reachable free cells (tests/ormstc_oracles.py); tests/test_ormstc_looks.py drives
-the same machine through the agents' driver code with one robot.
+the same machine through the agents' driver code with one robot, and
+tests/test_ormstc_conflicts.py's forced-collision property runs with ``half_sense`` too.
 """
 
 from __future__ import annotations
@@ -13,8 +14,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from ormstc_oracles import missed
 from test_ormstc_conflicts import check_resolved
 from test_ormstc_sim import random_starts, random_world
@@ -53,18 +52,6 @@ def test_half_sense_covers_what_whole_cells_cover(name: str) -> None:
         assert (given_up > 0) == (name == "cave")
         # a cell given up costs the robot its way in and out, nothing more
         assert half.makespan <= whole.makespan + 4 * given_up
-
-
-@settings(max_examples=60, deadline=None, derandomize=True)
-@given(seed=st.integers(0, 10_000), size=st.integers(4, 8), k=st.integers(2, 6),
-       density=st.sampled_from([0.0, 0.15]), priority=st.sampled_from(list(Priority)))
-def test_forced_collisions_with_half_sense_stay_complete(
-        seed: int, size: int, k: int, density: float, priority: Priority) -> None:
-    world = random_world(seed, size, size, density)
-    sim = LockstepSim(world, random_starts(world, k, seed),
-                      SimConfig(seed=seed, delay=(1, 6), claim_wait=1, priority=priority,
-                                half_sense=True))
-    check_resolved(sim, sim.run())
 
 
 def _gives_up_on_bodies(m: Robot, cell: Cell, side: int) -> Iterator[object]:
