@@ -120,10 +120,10 @@ async def cover_alone(blocked: np.ndarray, start: SubCell, glances: bool,
                 if not inside:
                     request = replace(request, enter=False)
                 if stay:
-                    given_up = len(looker.given_up)
+                    out = len(looker.stepped_out)
                     answer = await looker.sense(request, SenseMode.ALL, NOBODY)
-                    for sub in looker.given_up[given_up:]:
-                        walk[sub] -= 1  # the step into a cell given up was a look step
+                    for sub in looker.stepped_out[out:]:
+                        walk[sub] -= 1  # the step into a cell stepped out of was a look
                         if not walk[sub]:
                             del walk[sub]
                 else:

@@ -95,7 +95,7 @@ class Looker:
         self.home: SubCell | None = None  # set while the body stands beside it
         self.came_from: SubCell | None = None  # where the body stood before the last move
         self.back: SubCell | None = None  # the step back out of a cell given up, not made yet
-        self.given_up: list[SubCell] = []  # the sub-cells entered in cells given up
+        self.stepped_out: list[SubCell] = []  # entered to look from inside, stepped out of
 
     async def sense(self, request: Sense, mode: SenseMode, may_hold_body: BodyTest,
                     peer_in: BodyTest | None = None) -> SenseResult:
@@ -116,17 +116,18 @@ class Looker:
         if self.home is None:
             self.marked.publish()
         if inside and result.statuses[0][1] is not CellStatus.FREE:
-            # the machine gives the cell up and steps back: the way in and out were looks
+            # the machine steps back out (giving the cell up unless a rival's body is in
+            # it, planner/ormstc/inside.py): the way in and out were looks
             entered = self.home or (pose[0], pose[1])
             self.marked.mark(entered)
             self.sonar.steps += 1
             self.back = self.came_from
-            self.given_up.append(entered)
+            self.stepped_out.append(entered)
         return result
 
     def walked(self, to: SubCell) -> bool:
         """After the machine's move to ``to``: True if it was a look step (the step back
-        out of a cell given up), published as one."""
+        out of a cell looked at from inside), published as one."""
         if to != self.back:
             return False
         self.back = None
