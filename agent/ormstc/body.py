@@ -205,7 +205,6 @@ async def look_inside(body: Hardware, sonar: SonarMap, cell: Cell, may_hold_body
         if not await body.forward():
             return SenseResult(((cell, CellStatus.ROBOT),))  # a body after all: give it up
         sonar.steps += 1
-        sonar.inside_steps += 1
         heading = _pose(body)[2]
         await _read(body, sonar, _ALL_SONARS, nxt, heading, elsewhere)
         status = _inside(cell, sonar)

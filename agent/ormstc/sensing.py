@@ -84,9 +84,6 @@ class SonarMap:
     readings: int = 0
     glance_readings: int = 0  # of the readings, those taken after a move (agent.ormstc.looks)
     beside_looks: int = 0
-    # forward steps made to see a cell from inside (agent.ormstc.body.look_inside); most
-    # are the walk's next move, and those are not in ``steps``
-    inside_steps: int = 0
     steps: int = 0
     turns: int = 0
 
