@@ -29,11 +29,13 @@ from agent.ormstc.sensing import (
     beside,
     cell_of,
     direction_to,
+    peer_may_be_in,
     shows_news,
     sub_cells,
 )
 from planner.grid import coarsen
 from planner.maps.worlds import builtin_world
+from planner.ormstc.knowledge import Knowledge
 from planner.ormstc.machine import OrmstcMachine
 from planner.ormstc.types import (
     AliveResult,
@@ -43,6 +45,7 @@ from planner.ormstc.types import (
     MachineConfig,
     Move,
     MoveResult,
+    Priority,
     Sense,
     SenseMode,
     SubCell,
@@ -381,3 +384,18 @@ def test_looks_stay_exact_with_rays_told_by_peers(
             result = asyncio.run(Looker(body, sonar, lambda seq, cell: None).sense(
                 Sense((target,)), SenseMode.ALL, NOBODY))
             assert dict(result.statuses)[target] is exact(blocked, target), (pos, target)
+
+
+def test_a_peer_may_be_in_an_own_cell_only_when_it_claimed_owns_or_stands_there() -> None:
+    """What makes a hit inside an own cell a body rather than an obstacle (look_inside)."""
+    know = Knowledge(1, 3, Priority.ID)
+    mine, claimed, shared, elsewhere = (0, 0), (0, 1), (1, 1), (2, 2)
+    know.own(mine, 1)
+    know.own(claimed, 1)
+    know.own(shared, 1)
+    know.claims.hear(claimed, 2, 0)
+    know.own(shared, 0)  # a conflict: robot 0's edge into a cell robot 1 owns
+    assert not peer_may_be_in(mine, 1, know, ())
+    assert peer_may_be_in(claimed, 1, know, ()) and peer_may_be_in(shared, 1, know, ())
+    assert peer_may_be_in(mine, 1, know, [elsewhere, mine])  # a peer's last pose
+    assert not peer_may_be_in(mine, 1, None, ()) and peer_may_be_in(mine, 1, None, [mine])

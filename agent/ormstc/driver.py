@@ -37,6 +37,7 @@ from agent.ormstc.sensing import (
     HEADING_DELTA,
     SonarMap,
     cell_of,
+    peer_may_be_in,
 )
 from agent.ormstc.wire import WIRE_TYPES, Inbound, Rejoin, TreeBook, key_for, to_wire
 from bus import keys
@@ -254,15 +255,9 @@ class OrmstcAgent(BodyAgent):
     # --- requests -------------------------------------------------------------------------
 
     def peer_may_be_in(self, cell: Cell) -> bool:
-        """A peer's body can stand in ``cell``, a cell this robot owns: the peer claimed or
-        owns it too (a conflict, planner/ormstc/conflicts.py), or its pose lies there."""
+        """A peer's body can stand in ``cell``, a cell this robot owns (sensing.peer_may_be_in)."""
         know = self.machine.know if self.machine is not None else None
-        if cell in self.peer_cells.values():
-            return True
-        if know is None:
-            return False
-        return (any(r != self.robot for r in know.owners.get(cell, ()))
-                or any(r != self.robot for r in know.claims.pending.get(cell, ())))
+        return peer_may_be_in(cell, self.robot, know, self.peer_cells.values())
 
     async def sense(self, request: Sense) -> SenseResult:
         return await self.looker.sense(request, self.options.sense_mode, self.may_hold_body,

@@ -18,10 +18,11 @@ I/O, no clock.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass, field
 
 from planner.geometry import Heading, cell_of
+from planner.ormstc.knowledge import Knowledge
 from planner.ormstc.types import Cell, CellStatus, SubCell
 
 # planner.geometry's numbering (clockwise from north, a right turn is +1), indexable by int
@@ -115,6 +116,19 @@ class SonarMap:
         """The rays recorded since the last call, for peers."""
         rays, self.rays = tuple(self.rays), []
         return rays
+
+
+def peer_may_be_in(cell: Cell, me: int, know: Knowledge | None,
+                   peer_cells: Collection[Cell]) -> bool:
+    """Whether a peer's body can stand in ``cell``, a cell robot ``me`` owns: a peer claimed
+    or owns it too (a conflict, planner/ormstc/conflicts.py), or its last pose lies there.
+    A hit inside an own cell is an obstacle only where this is False (body.look_inside)."""
+    if cell in peer_cells:
+        return True
+    if know is None:
+        return False
+    return (any(r != me for r in know.owners.get(cell, ()))
+            or any(r != me for r in know.claims.pending.get(cell, ())))
 
 
 def shows_news(sonar: SonarMap, pos: SubCell, direction: int) -> bool:
