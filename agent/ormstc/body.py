@@ -10,7 +10,9 @@ when simhw runs in one-at-a-time mode (it rejects several), every later sense na
 :func:`look` carries out the machine's ``Sense`` with that body and agent.ormstc.sensing's
 geometry: a thin ray sees one half of a neighbouring cell, so when the other half was never
 seen free the robot steps to the sub-cell beside it (its own cell), reads the same direction
-with a side sonar and steps back (docs/ormstc.md, "Sensing with a thin sonar").
+with a side sonar and steps back (docs/ormstc.md, "Sensing with a thin sonar"). Where the
+machine allows it (``Sense.enter``) the other half is instead seen from inside the cell
+after growing into it (:func:`look_inside`, planner/ormstc/inside.py).
 """
 
 from __future__ import annotations
@@ -203,7 +205,7 @@ async def look_inside(body: Hardware, sonar: SonarMap, cell: Cell, may_hold_body
         nxt = ahead if cell_of(ahead) == cell else beside(pos, (pose[2] + 1) % 4)
         await _face(body, direction_to(pos, nxt), sonar)
         if not await body.forward():
-            return SenseResult(((cell, CellStatus.ROBOT),))  # a body after all: give it up
+            return SenseResult(((cell, CellStatus.ROBOT),))  # a body in the way (inside.py)
         sonar.steps += 1
         heading = _pose(body)[2]
         await _read(body, sonar, _ALL_SONARS, nxt, heading, elsewhere)

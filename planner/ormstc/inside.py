@@ -30,7 +30,7 @@ tests/test_ormstc_looks.py (the driver's code, one robot) and tests/test_ormstc_
 from __future__ import annotations
 
 from planner.ormstc.robot import ANSWER, Flow, Robot
-from planner.ormstc.types import Cell, CellStatus, Move, MoveResult, Sense, SenseResult
+from planner.ormstc.types import Cell, CellStatus, Move, MoveResult, Sense
 from planner.ormstc.walk import DELTA, neighbour
 
 
@@ -49,7 +49,7 @@ def enter_to_look(m: Robot, cell: Cell, side: int) -> Flow:
     if isinstance(result, MoveResult) and result.ok:
         m.moved(entry)
         result = yield (ANSWER, Sense((child,)))  # the cell the body stands in
-        status = _status(m, child, result)
+        status = m.sensed(child, result)
         if status is CellStatus.FREE:
             return None
         yield from m.move_to(here)
@@ -62,7 +62,7 @@ def enter_to_look(m: Robot, cell: Cell, side: int) -> Flow:
         # leave it to nobody, as the rival may cede it to this robot's edge). Look from
         # outside as before; only an obstacle undoes the grow, else the walk enters as usual
         result = yield (ANSWER, Sense((child,)))
-        status = _status(m, child, result)
+        status = m.sensed(child, result)
         if status is not CellStatus.OBSTACLE:
             return None
     # an obstacle, or a dead robot's body: nobody can cover the cell
@@ -99,13 +99,3 @@ def give_up(m: Robot, cell: Cell, side: int) -> None:
             del m.know.owners[child]
     m.given_up += 1
 
-
-def _status(m: Robot, child: Cell, result: object) -> CellStatus:
-    status = CellStatus.OBSTACLE
-    if isinstance(result, SenseResult):
-        for sensed, value in result.statuses:
-            if sensed == child:
-                status = value
-    if status is not CellStatus.HALF:
-        m.know.note_sensed(child, status)
-    return status

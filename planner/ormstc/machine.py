@@ -83,7 +83,9 @@ class OrmstcMachine:
         self.passing: set[Cell] = set()  # passages being walked round (passage.py): kept
         self.conflicts: set[tuple[Cell, int]] = set()  # (cell, other owner) resolved
         self.cut = 0  # cells given up in conflicts
-        self.given_up = 0  # cells grown into on their near half and found blocked (inside.py)
+        # cells grown into on their near half and given up: an obstacle or a dead robot's
+        # body inside (inside.py)
+        self.given_up = 0
         self.freed: list[int] = []  # dead robots whose cells this robot announced free
         self.withdrawn_for: int | None = None  # the peer of the last WithdrawalMsg sent
         self.asked: Request | None = None  # the last Sense / Move / IsAlive asked
@@ -373,7 +375,7 @@ class OrmstcMachine:
             return CellStatus.FREE  # static and never owned: nobody can have died there
         cells, turn = self._look(cell, side, target)
         result = yield (_ANSWER, Sense(cells, turn, enter))
-        return self._sensed(target, result.statuses if isinstance(result, SenseResult) else ())
+        return self.sensed(target, result)
 
     def _look(self, cell: Cell, side: int, target: Cell) -> tuple[tuple[Cell, ...], bool]:
         """The cells to sense for ``target`` and whether the robot must turn to see it."""
@@ -384,7 +386,10 @@ class OrmstcMachine:
             return (target,), turn
         return (target, *self.know.unknown_around(cell, target, self.mine)), False
 
-    def _sensed(self, target: Cell, statuses: Iterable[tuple[Cell, CellStatus]]) -> CellStatus:
+    def sensed(self, target: Cell, result: object) -> CellStatus:
+        """``target``'s status in a Sense's answer (OBSTACLE when missing); every status
+        answered is noted in the knowledge."""
+        statuses = result.statuses if isinstance(result, SenseResult) else ()
         status = CellStatus.OBSTACLE
         note = self.know.note_sensed
         for sensed, value in statuses:

@@ -15,7 +15,7 @@ from typing import Protocol
 
 from planner.ormstc.connections import Connections
 from planner.ormstc.knowledge import Knowledge
-from planner.ormstc.types import Cell, MachineConfig, Message, Request, SubCell
+from planner.ormstc.types import Cell, CellStatus, MachineConfig, Message, Request, SubCell
 
 # wait kinds of a yielded action: an answer, a time, a time or a change of knowledge, the end
 ANSWER, UNTIL, WAKE, FINISHED = 0, 1, 2, 3
@@ -66,3 +66,5 @@ class Robot(Protocol):
     def backoff(self) -> float: ...
 
     def ask_alive(self, robot: int) -> Flow: ...
+
+    def sensed(self, target: Cell, result: object) -> CellStatus: ...
