@@ -9,13 +9,13 @@ Every instance is fresh from its seed: a generated world (planner.maps.generated
 instance seed) and k robots at random sub-cells of it (planner.placement.random_starts,
 the same seed). Small maps (about 40 x 40 cells) carry k = 5-30, large ones (about
 120 x 120 cells, 45 000-58 000 sub-cells) k = 100 and 300. Each instance is planned by the
-registry's balanced planner (planner.balanced.plan.plan_for: the regions, or opt on the
-same tree when that is better) and by opt on the dfs tree `mstc plan` builds by default,
-in the same run; every plan is checked (planner.invariants.check_plan, relaxed for walks
+registry's balanced planner (planner.balanced.plan.plan_for: the best of the regions, opt on
+the same tree and a split of that tree's cycle) and by opt on the dfs tree `mstc plan` builds
+by default, in the same run; every plan is checked (planner.invariants.check_plan, relaxed for walks
 as its notes promise). Per family and k: the lower bound ceil(n/k) - 1 (mean), balanced's
 moves over it in % (mean and worst instance), balanced / opt (mean and worst), how often
 balanced was worse than opt (never, by construction of plan_for: the check that it stays
-so), how the plan was made (regions / walks / opt kept), and CPU seconds of one call
+so), how the plan was made (regions / walks / opt kept / split), and CPU seconds of one call
 (process_time, mean and max). Progress goes to stderr, the table to stdout.
 """
 
@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 from bench_balanced_scale import check
 
-from planner.balanced.plan import OPT_KEPT, WALK_OUT, plan_for
+from planner.balanced.plan import OPT_KEPT, SPLIT, WALK_OUT, plan_for
 from planner.grid import work_area
 from planner.maps import resolve_world
 from planner.offline.plan import make_plan
@@ -70,8 +70,9 @@ def measure(spec: str, k: int, seed: int, row: Row) -> str:
     row.cpu.append(time.process_time() - cpu)
     check(plan, area)
     opt = make_plan(area, tree, "opt")
-    kind = "opt kept" if any(n.startswith(OPT_KEPT) for n in plan.notes) else (
-        "walks" if any(n.startswith(WALK_OUT) for n in plan.notes) else "regions")
+    kind = ("opt kept" if any(n.startswith(OPT_KEPT) for n in plan.notes) else
+            "split" if any(n.startswith(SPLIT) for n in plan.notes) else
+            "walks" if any(n.startswith(WALK_OUT) for n in plan.notes) else "regions")
     row.bounds.append(bound)
     row.over.append(100.0 * (plan.makespan - bound) / bound)
     row.vs_opt.append(plan.makespan / opt.makespan)

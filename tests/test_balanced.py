@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from planner.algorithms import algorithm
 from planner.balanced import balanced_plan, partition
 from planner.balanced.coverage import region_path
-from planner.balanced.plan import OPT_KEPT, WALK_OUT
+from planner.balanced.plan import OPT_KEPT, SPLIT, WALK_OUT
 from planner.balanced.seeds import open_walk_ok, share_cell
 from planner.balanced.takeover import simulate_failures
 from planner.errors import UnsupportedPlanError
@@ -309,7 +309,10 @@ def test_the_registrys_balanced_plan_is_never_worse_than_opt_on_the_same_tree(se
     plan = algorithm("balanced").load_plan()(area, tree, "balanced", seed)
     opt = make_plan(area, tree, "opt")
     assert plan.algo == "balanced" and plan.makespan <= opt.makespan
-    assert plan.makespan == min(opt.makespan, balanced_plan(area, seed=seed).makespan)
+    best_of_two = min(opt.makespan, balanced_plan(area, seed=seed).makespan)
+    # the cycle split (tests/test_balanced_split.py) is kept only when it is shorter still
+    assert plan.makespan == best_of_two or (plan.notes[0].startswith(SPLIT)
+                                            and plan.makespan < best_of_two)
     if plan.notes[0].startswith(OPT_KEPT):
         assert [rp.path for rp in plan.robots] == [rp.path for rp in opt.robots]
     result = simulate_failures(plan, {plan.robots[1].robot: 9}, detection_delay=1,

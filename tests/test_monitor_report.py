@@ -168,6 +168,34 @@ def test_balanced_walk_outs_may_cross_other_regions_and_nothing_else() -> None:
     assert statuses(report)[name] == "failed"
 
 
+def test_a_split_of_the_cycle_is_held_to_the_walk_out_promise() -> None:
+    # a perfect maze with robots at random: the registry's balanced planner keeps the split
+    # of the cycle (planner.balanced.cyclesplit); every robot walks to its stretch first
+    from planner.algorithms import algorithm
+    from planner.balanced.plan import SPLIT
+    from planner.experiments.instances import maze_cells
+    from planner.geometry import cell_of
+    from planner.grid import expand
+    from planner.trees import build_tree
+    from planner.types import OccupancyGrid
+
+    grid = OccupancyGrid(expand(maze_cells(10, 12, np.random.default_rng(100))))
+    area = work_area(grid, random_starts(grid, 12, 0))
+    tree = build_tree(area.cells, "dfs", seed=0, starts=[cell_of(s) for s in area.starts])
+    plan = algorithm("balanced").load_plan()(area, tree, "balanced", 0)
+    assert plan.notes[0].startswith(SPLIT)
+    walks = {rp.robot: list(rp.path) for rp in plan.robots}
+    name = "no sub-cell covered twice except on walk-outs"
+    report = report_of(run_mission(np.array(grid.free), walks, algo="balanced",
+                                   digest=plan_digest(plan)).records)
+    assert report.revisits > 0 and statuses(report)[name] == "ok"
+    mover = next(rp for rp in plan.robots if rp.steps > 2)
+    walks[mover.robot] = [*walks[mover.robot], walks[mover.robot][-2]]  # a step back
+    report = report_of(run_mission(np.array(grid.free), walks, algo="balanced",
+                                   digest=plan_digest(plan)).records)
+    assert statuses(report)[name] == "failed"
+
+
 def test_a_record_of_another_planner_version_is_not_judged_by_todays_plan() -> None:
     # The walk-out promise is checked against the plan made again from the record; when
     # that is not the plan the robots announced (recorded by an older planner), the check
@@ -186,14 +214,15 @@ def test_a_balanced_plan_that_kept_opt_is_held_to_opt_s_promise() -> None:
     # planner keeps optimal MSTC (shorter than the regions); opt's walks revisit sub-cells
     # on their way back, which the walk-out promise had counted as double work. (That
     # trial's starts, (22, 0) and (17, 13), now get regions shorter than opt, from
-    # farthest-point seeds; these starts on the same map still keep opt.)
+    # farthest-point seeds, and later starts a shorter split of the cycle; these starts on
+    # the same map, random_starts seed 61, still keep opt.)
     from planner.algorithms import algorithm
     from planner.balanced.plan import OPT_KEPT
     from planner.geometry import cell_of
     from planner.trees import build_tree
 
     grid = resolve_world("rooms:12x16:1")
-    starts = [(10, 13), (11, 10)]
+    starts = [(9, 9), (8, 6)]
     area = work_area(grid, starts)
     tree = build_tree(area.cells, "dfs", seed=0, starts=[cell_of(s) for s in starts])
     plan = algorithm("balanced").load_plan()(area, tree, "balanced", 0)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 from planner.balanced.coverage import region_path
+from planner.balanced.cyclesplit import split_cycle
 from planner.balanced.regions import plan_regions
 from planner.cycle import stc_cycle
 from planner.grid import WorkArea
@@ -16,14 +17,17 @@ ALGO = "balanced"
 WALK_OUT = "balanced walk-out"  # note prefix of plans in which some sub-cells are revisited
 FALLBACK = "balanced fallback"  # note prefix of plans that are optimal MSTC instead
 OPT_KEPT = "balanced kept opt"  # note prefix of plans where plain opt on the tree was better
+SPLIT = "balanced cycle split"  # note prefix of plans that split the tree's cycle instead
 
 
 def plan_for(area: WorkArea, tree: SpanningTree, algo: str, seed: int = 0) -> Plan:
-    """The registry's entry point (planner.algorithms): the balanced plan, or plain opt on
-    ``tree`` (what ``--algo opt`` plans on the same instance) if its makespan is smaller, so
-    ``--algo balanced`` is never worse than ``--algo opt``."""
+    """The registry's entry point (planner.algorithms): the best of three plans. The
+    balanced regions; plain opt on ``tree`` (what ``--algo opt`` plans on the same instance),
+    so ``--algo balanced`` is never worse than ``--algo opt``; and a split of that tree's
+    cycle into stretches any robot may walk to (``cyclesplit``). Ties keep the earlier."""
     del algo
-    return better_than_opt(balanced_plan(area, seed=seed), area, tree)
+    return better_split(better_than_opt(balanced_plan(area, seed=seed), area, tree), area,
+                        tree)
 
 
 def better_than_opt(plan: Plan, area: WorkArea, tree: SpanningTree) -> Plan:
@@ -35,6 +39,23 @@ def better_than_opt(plan: Plan, area: WorkArea, tree: SpanningTree) -> Plan:
             f"balanced regions {plan.makespan}")
     return Plan(algo=ALGO, cycle=opt.cycle, robots=opt.robots, tree=tree,
                 notes=(note, *opt.notes))
+
+
+def better_split(plan: Plan, area: WorkArea, tree: SpanningTree) -> Plan:
+    """``plan``, or a split of ``tree``'s cycle (noted SPLIT and WALK_OUT) when one
+    finishes sooner: every robot walks to one end of a stretch of the cycle and covers it."""
+    cycle = stc_cycle(tree, start=area.starts[0])
+    robots = split_cycle(area, cycle, below=plan.makespan)
+    if robots is None:
+        return plan
+    makespan = max(rp.steps for rp in robots)
+    walks = sum(rp.walk_out for rp in robots)
+    notes = (f"{SPLIT}: stretches of the given tree's cycle, any robot to any stretch, plan "
+             f"{makespan} moves against {plan.makespan} (lower bound "
+             f"{math.ceil(area.n / len(area.starts)) - 1})",
+             f"{WALK_OUT}: the robots walk to their stretches first ({walks} moves in all), "
+             "over sub-cells others cover too")
+    return Plan(algo=ALGO, cycle=cycle, robots=robots, tree=tree, notes=notes)
 
 
 def balanced_plan(area: WorkArea, *, seed: int = 0) -> Plan:
