@@ -12,9 +12,9 @@ For a bound T, stretches are handed out along the cycle from a first cut: at pos
 every unused robot's *reach* is the farthest end it can cover within T (forwards: enter at
 a; backwards: enter at the end, whose walk grows by at most one per cycle step, so the
 farthest end is a binary search). The robot taken is the one among the ``LOOKAHEAD``
-farthest-reaching whose successor (the farthest any other robot then reaches) is farthest;
-plain farthest-reach is myopic (a robot that could serve a later stretch just as well uses
-itself up early). Feasibility is searched on T (binary search) from a few first cuts; the
+farthest-reaching after which the next picks (DEPTH of them, chosen the same way) get
+farthest; plain farthest-reach is myopic (a robot that could serve a later stretch just as
+well uses itself up early). Feasibility is searched on T (binary search) from a few first cuts; the
 greedy is a heuristic, so a T it cannot fill may still be feasible, which only costs
 quality, never validity. The bound ``below`` (the best plan known) skips first cuts that
 cannot beat it with one test.
@@ -31,7 +31,8 @@ from planner.balanced.relocate import sub_cell_route
 from planner.grid import WorkArea
 from planner.types import BoolArray, Cycle, Int32Array, IntArray, RobotPlan, SubCell
 
-LOOKAHEAD = 3  # farthest-reaching robots whose successor is compared (3 and 8 tie: issue 14)
+LOOKAHEAD = 3  # farthest-reaching robots compared at each pick (3 and 8 tied: issue 14)
+DEPTH = 2  # picks looked ahead past each of them, below MANY robots (1 from MANY)
 FIRST_CUTS = 8  # first cuts tried, evenly round the cycle
 FIRST_CUTS_MANY = 2  # from MANY robots, where one greedy costs k reach scans of k robots
 MANY = 50
@@ -55,21 +56,22 @@ class Stretch:
 class CycleReach:
     """Reaches of the robots along a cycle, from their walks to every cycle index."""
 
-    def __init__(self, walks: IntArray | Int32Array) -> None:
+    def __init__(self, walks: IntArray | Int32Array, *, depth: int = 1) -> None:
         """``walks[j, i]``: robot j's shortest walk to cycle index i (any large value: none).
 
         Consecutive cycle indices are neighbouring sub-cells, so a row changes by at most one
         per index and ``walks[j, i] + i`` never decreases (the backward reach's search).
         """
-        self.walks = np.asarray(walks, dtype=np.int64)
+        self.walks = np.asarray(walks)  # int32 from start_distances: half the memory
         self.k, self.n = self.walks.shape
+        self.depth = depth  # picks looked ahead past each candidate
 
     def reach(self, at: int, bound: int, rows: IntArray) -> tuple[IntArray, BoolArray]:
         """For robots ``rows``: the farthest end (exclusive, on the unrolled line, at most
         at + n) each covers from ``at`` within ``bound`` moves (``at`` if none), and whether
         it enters forwards."""
         n = self.n
-        walk = self.walks[rows, at % n]
+        walk = self.walks[rows, at % n].astype(np.int64)
         forward = np.where(walk <= bound, at + bound + 1 - walk, at)
         # backwards: the largest x in [at, at + bound] with walk(x) + x - at <= bound
         lo = np.full(len(rows), at - 1, dtype=np.int64)
@@ -79,7 +81,7 @@ class CycleReach:
             if not open_.any():
                 break
             mid = (lo + hi + 1) // 2
-            fits = self.walks[rows, mid % n] + mid - at <= bound
+            fits = self.walks[rows, mid % n].astype(np.int64) + mid - at <= bound
             lo = np.where(open_ & fits, mid, lo)
             hi = np.where(open_ & ~fits, mid - 1, hi)
         backward = lo + 1
@@ -109,17 +111,34 @@ class CycleReach:
         return out
 
     def _look_ahead(self, bound: int, rows: IntArray, reach: IntArray, end: int) -> int:
-        best, best_next = -1, -1
+        """Index into ``rows`` of the robot to take: among the LOOKAHEAD farthest-reaching,
+        the one after which the next ``self.depth`` picks (chosen the same way) get
+        farthest."""
+        best, best_after = -1, -1
         for pick in np.argsort(-reach, kind="stable")[:LOOKAHEAD].tolist():
-            if reach[pick] <= reach.min() and best >= 0:
-                break
-            others = np.delete(rows, pick)
-            after = int(self.reach(int(reach[pick]), bound, others)[0].max())
-            if after > best_next:
-                best, best_next = pick, after
+            after = self._farthest(bound, int(reach[pick]), np.delete(rows, pick), end,
+                                   self.depth)
+            if after > best_after:
+                best, best_after = pick, after
                 if after >= end:
                     break
         return best
+
+    def _farthest(self, bound: int, at: int, rows: IntArray, end: int, depth: int) -> int:
+        if at >= end or depth == 0 or rows.size == 0:
+            return at
+        reach = self.reach(at, bound, rows)[0]
+        if depth == 1:
+            return int(reach.max())
+        farthest = at
+        for pick in np.argsort(-reach, kind="stable")[:LOOKAHEAD].tolist():
+            if reach[pick] <= at:
+                break
+            farthest = max(farthest, self._farthest(bound, int(reach[pick]),
+                                                    np.delete(rows, pick), end, depth - 1))
+            if farthest >= end:
+                break
+        return farthest
 
     def best(self, lower: int, below: int, firsts: IntArray) -> tuple[int, list[Stretch]] | None:
         """The smallest bound in [lower, below) the greedy fills from one of ``firsts``, with
@@ -181,8 +200,9 @@ def split_cycle(area: WorkArea, cycle: Cycle, *, below: int) -> tuple[RobotPlan,
     w = area.sub_cells.shape[1]
     flat = cycle.path[:, 0] * w + cycle.path[:, 1]
     walks = start_distances(area, limit=below)[:, flat]
-    reach = CycleReach(walks)
-    cuts = FIRST_CUTS if k < MANY else FIRST_CUTS_MANY
+    few = k < MANY
+    reach = CycleReach(walks, depth=DEPTH if few else 1)
+    cuts = FIRST_CUTS if few else FIRST_CUTS_MANY
     firsts = np.unique(np.linspace(0, cycle.n, cuts, endpoint=False).astype(np.int64))
     found = reach.best(lower, below, firsts)
     if found is None:
