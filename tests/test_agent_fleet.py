@@ -179,13 +179,17 @@ async def make_fleet(bus: Bus, router: str, world: Path, algo: str,
 
 def assert_walks_follow(fleet: Fleet, expected: Sequence[Sequence[SubCell]],
                         dead: set[int]) -> None:
-    """Ground-truth walks equal the expected ones; a killed robot may have made one move
-    more than it reported: killed while a forward command was in flight, its body still
-    completes the motion, and nobody hears of it (the taker covers that sub-cell again)."""
+    """Ground-truth walks equal the expected ones; a killed robot may have made up to two
+    moves more than it reported. Killed while a forward command was in flight, its body
+    still completes the motion and nobody hears of it (the taker covers that sub-cell
+    again). And the progress report of the move before may be lost with it: progress is a
+    STREAM message (DATA priority, bus.qos) and the motion command a CONTROL one
+    (INTERACTIVE_LOW), so the command can leave the process first, and SIGKILL then drops
+    the report still queued (seen once in four full runs: 7 moves reported, 9 made)."""
     for robot, want in enumerate(expected):
         got = fleet.walks[robot]
-        if robot in dead and len(got) == len(want) + 1:
-            got = got[:-1]
+        if robot in dead and len(want) < len(got) <= len(want) + 2:
+            got = got[:len(want)]
         assert got == list(want), f"robot {robot}: ground truth walk differs from semantics"
 
 
