@@ -16,7 +16,10 @@ as its notes promise). Per family and k: the lower bound ceil(n/k) - 1 (mean), b
 moves over it in % (mean and worst instance), balanced / opt (mean and worst), how often
 balanced was worse than opt (never, by construction of plan_for: the check that it stays
 so), how the plan was made (regions / walks / opt kept / split), and CPU seconds of one call
-(process_time, mean and max). Progress goes to stderr, the table to stdout.
+(process_time, mean and max). On the small maps also the flow bound
+(planner.balanced.bounds: it counts the walks every robot must make before it covers
+anything alone, and bounds every plan; mazes are far above ceil(n/k) - 1 for that reason)
+and balanced's moves over it. Progress goes to stderr, the table to stdout.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from dataclasses import dataclass, field
 
 from bench_balanced_scale import check
 
+from planner.balanced.bounds import flow_bound
 from planner.balanced.plan import OPT_KEPT, SPLIT, WALK_OUT, plan_for
 from planner.grid import work_area
 from planner.maps import resolve_world
@@ -54,6 +58,8 @@ FAMILIES = {
 class Row:
     bounds: list[int] = field(default_factory=list)
     over: list[float] = field(default_factory=list)  # % over LB
+    flows: list[int] = field(default_factory=list)  # the flow bound (small maps)
+    over_flow: list[float] = field(default_factory=list)  # % over it
     vs_opt: list[float] = field(default_factory=list)
     worse: int = 0
     kinds: dict[str, int] = field(default_factory=dict)
@@ -75,10 +81,16 @@ def measure(spec: str, k: int, seed: int, row: Row) -> str:
             "walks" if any(n.startswith(WALK_OUT) for n in plan.notes) else "regions")
     row.bounds.append(bound)
     row.over.append(100.0 * (plan.makespan - bound) / bound)
+    flow = ""
+    if k <= max(SMALL_KS):  # a flow network of k x n arcs: seconds on the small maps only
+        lifted = flow_bound(area)
+        row.flows.append(lifted)
+        row.over_flow.append(100.0 * (plan.makespan - lifted) / lifted)
+        flow = f", flow bound {lifted}"
     row.vs_opt.append(plan.makespan / opt.makespan)
     row.worse += plan.makespan > opt.makespan
     row.kinds[kind] = row.kinds.get(kind, 0) + 1
-    return f"{spec} k={k}: {plan.makespan} moves, LB {bound}, opt {opt.makespan} ({kind})"
+    return f"{spec} k={k}: {plan.makespan} moves, LB {bound}{flow}, opt {opt.makespan} ({kind})"
 
 
 def main() -> None:
@@ -95,9 +107,10 @@ def main() -> None:
         if family not in FAMILIES:
             parser.error(f"--families: unknown {family!r}; choose from {', '.join(FAMILIES)}")
     ks = [int(k) for k in args.ks.split(",")]
-    print("| family | k | instances | LB mean | % over LB: mean | worst | balanced / opt: mean "
-          "| worst | worse than opt | made as | CPU s: mean | max |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| family | k | instances | LB mean | % over LB: mean | worst | flow bound mean | "
+          "% over it: mean | worst | balanced / opt: mean | worst | worse than opt | made as | "
+          "CPU s: mean | max |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for family in families:
         for k in ks:
             spec = FAMILIES[family][0 if k <= max(SMALL_KS) else 1]
@@ -106,8 +119,10 @@ def main() -> None:
                 print(measure(spec.format(seed=seed), k, seed, row), file=sys.stderr,
                       flush=True)
             made = ", ".join(f"{kind} {count}" for kind, count in sorted(row.kinds.items()))
+            flows = (f"{statistics.mean(row.flows):.1f} | {statistics.mean(row.over_flow):.2f} | "
+                     f"{max(row.over_flow):.2f}") if row.flows else "- | - | -"
             print(f"| {family} | {k} | {len(row.over)} | {statistics.mean(row.bounds):.1f} | "
-                  f"{statistics.mean(row.over):.2f} | {max(row.over):.2f} | "
+                  f"{statistics.mean(row.over):.2f} | {max(row.over):.2f} | {flows} | "
                   f"{statistics.mean(row.vs_opt):.2f} | {max(row.vs_opt):.2f} | {row.worse} | "
                   f"{made} | {statistics.mean(row.cpu):.2f} | {max(row.cpu):.2f} |",
                   flush=True)

@@ -1,6 +1,8 @@
 """The cycle split (planner.balanced.cyclesplit, issue 14 item 3): stretches of one STC cycle
 that any robot may walk to. Checked against brute force on small lines of walks, by its
-invariants on generated maps, and as the registry's plan on mazes, where it wins."""
+invariants on generated maps, and as the registry's plan on mazes, where it wins. And the
+flow bound (planner.balanced.bounds) the benchmark measures plans against: never above the
+best plan of a brute force, nor above any plan made."""
 
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from hypothesis import strategies as st
 
 from planner.algorithms import algorithm
 from planner.balanced import balanced_plan
+from planner.balanced.bounds import flow_bound
 from planner.balanced.cyclesplit import (
     CycleReach,
     Stretch,
@@ -26,7 +29,7 @@ from planner.balanced.takeover import simulate_failures
 from planner.cycle import stc_cycle
 from planner.experiments.instances import maze_cells
 from planner.geometry import cell_of
-from planner.grid import expand, work_area
+from planner.grid import WorkArea, expand, work_area
 from planner.invariants import check_plan
 from planner.maps import resolve_world
 from planner.offline.plan import make_plan
@@ -190,3 +193,59 @@ def test_the_registry_keeps_the_best_of_regions_opt_and_split_and_the_split_wins
                                    recovery="takeover")
         assert result.complete
     assert wins >= 6
+
+
+def brute_force_makespan(area: WorkArea) -> int:
+    """The smallest makespan of any plan (robots walk independently, 4-adjacent moves over
+    the area's sub-cells): per robot, the sets of sub-cells a walk of t moves can have
+    visited, until some choice of one set per robot covers everything."""
+    subs = [tuple(map(int, s)) for s in np.argwhere(area.sub_cells)]
+    bit = {s: 1 << i for i, s in enumerate(subs)}
+    full = (1 << len(subs)) - 1
+    fronts = [{(start, bit[start])} for start in area.starts]
+    seen: list[set[int]] = [{bit[start]} for start in area.starts]
+    for moves in itertools.count():
+        combos = {0}
+        for masks in seen:
+            combos = {a | b for a in combos for b in masks}
+        if full in combos:
+            return moves
+        for j, front in enumerate(fronts):
+            nxt = set()
+            for (r, c), mask in front:
+                for s in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1)):
+                    if s in bit:
+                        nxt.add((s, mask | bit[s]))
+            fronts[j] = nxt
+            seen[j] |= {mask for _, mask in nxt}
+    raise AssertionError("unreachable")
+
+
+@pytest.mark.parametrize("rows,k,seed", [(("..", ), 1, 0), (("..", ), 2, 1), (("...", ), 1, 2),
+                                         (("...", ), 2, 3), ((".#", ".."), 2, 4),
+                                         (("...", ), 3, 5), ((".#.", "..."), 2, 6)])
+def test_the_flow_bound_is_never_above_the_best_plan_found_by_brute_force(
+        rows: tuple[str, ...], k: int, seed: int) -> None:
+    coarse = np.array([[ch != "#" for ch in row] for row in rows], dtype=bool)
+    grid = OccupancyGrid(expand(coarse))
+    area = work_area(grid, random_starts(grid, k, seed))
+    best = brute_force_makespan(area)
+    bound = flow_bound(area)
+    assert math.ceil(area.n / k) - 1 <= bound <= best
+
+
+def test_the_flow_bound_lifts_a_maze_and_stays_below_every_plan() -> None:
+    """On a perfect maze robots must walk corridors before they cover anything alone: the
+    bound rises above ceil(n/k) - 1 (measured 245 against 159 here) and stays below the
+    registry's plan, opt's and the regions' on every maze and map checked."""
+    for spec, k, seed in [("maze:39x39:2", 20, 2), ("maze:19x19:4", 8, 4),
+                          ("rooms:20x20:3", 6, 3), ("obstacles:20x20:30%:1", 9, 1)]:
+        grid = resolve_world(spec)
+        area = work_area(grid, random_starts(grid, k, seed))
+        tree = build_tree(area.cells, "dfs", seed=seed)
+        bound = flow_bound(area)
+        plans = [algorithm("balanced").load_plan()(area, tree, "balanced", seed),
+                 balanced_plan(area, seed=seed), make_plan(area, tree, "opt")]
+        assert bound <= min(p.makespan for p in plans), spec
+        if spec == "maze:39x39:2":
+            assert bound > math.ceil(area.n / k) - 1 + 50
