@@ -124,7 +124,9 @@ def test_a_dead_robots_body_inside_gives_the_cell_up(
     result = sim.run()
     assert result.finished and not missed(result).any()
     assert sum(m.given_up for m in sim.machines) > 0
-    # the check can fail: keeping the cell whatever body is inside, the run never ends
+    # the check can fail: keeping the cell whatever body is inside, the run never ends, or
+    # (11869: a takeover since decides beside a body for good, passage.cover_from_beside)
+    # ends much later (measured 200 steps against 101)
     monkeypatch.setattr(inside, "_dead_body", lambda _m, _cell: False)
     stuck = LockstepSim(world, starts, replace(config, max_steps=result.steps + 2_000)).run()
-    assert not stuck.finished
+    assert not stuck.finished or stuck.steps >= result.steps + 50

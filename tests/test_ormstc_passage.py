@@ -3,18 +3,24 @@
 Driven directly over a small robot: cell A = (0, 0) is the robot's own, cell B = (0, 1) a
 passage (lost in a conflict) hung off A's east side. The walk round them (counter-clockwise
 as drawn, rows going down) is (1, 1) -> (1, 2) -> (1, 3) -> (0, 3) -> (0, 2) -> (0, 1).
-The whole runs, in the lockstep simulator, are in test_ormstc_conflicts.py.
+The whole runs, in the lockstep simulator, are in test_ormstc_conflicts.py, but for the
+takeovers that stand beside a body for good (at the end).
 """
 
 from __future__ import annotations
 
 from collections.abc import Generator
-from dataclasses import dataclass, field
-from typing import TypeVar, cast
+from dataclasses import dataclass, field, replace
+from typing import Any, TypeVar, cast
 
-from planner.ormstc import passage
+import pytest
+from ormstc_oracles import missed
+from test_ormstc_sim import random_starts, random_world
+
+from planner.ormstc import passage, watch
+from planner.ormstc.lockstep import LockstepSim, SimConfig
 from planner.ormstc.robot import ANSWER, UNTIL, Robot
-from planner.ormstc.types import Cell, MachineConfig, Move, MoveResult, SubCell
+from planner.ormstc.types import Cell, MachineConfig, Move, MoveResult, Priority, SubCell
 from planner.ormstc.walk import EAST, WEST, cell_of, side_of
 
 A, B = (0, 0), (0, 1)
@@ -140,3 +146,55 @@ def test_a_robot_done_in_a_passage_moves_to_the_nearest_cell_it_still_owns() -> 
     # nothing to do in a cell of its own
     robot = walker((0, 1))
     assert drive(passage.leave_passage(cast(Robot, robot)), robot, taken=set())[1] == []
+
+
+def test_a_walk_to_a_takeover_says_when_a_body_for_good_stands_on_its_target() -> None:
+    # robot in A at (1, 1), walking on to (1, 2): a body there that never moves
+    robot = walker((1, 1), ceded=False, hold_up=1.0)
+    reached, asked = drive(passage.walk_step(cast(Robot, robot), (1, 2), (1, 2)), robot,
+                           taken={(1, 2)})
+    assert reached is False and robot.pos == (1, 1)
+    assert asked.count((1, 2)) == passage.STUCK_AFTER
+    # a body that moves on is followed
+    robot = walker((1, 1), ceded=False, hold_up=1.0)
+    reached, asked = drive(passage.walk_step(cast(Robot, robot), (1, 2), (1, 2)), robot,
+                           taken={(1, 2)}, free_after=4)
+    assert reached is True and robot.pos == (1, 2)
+
+
+# (half_sense, seed, cells a side, robots, density, priority, deaths): forced collisions
+# (a claim window of one step) and deaths, bench_forced_collisions.py --wide --deaths
+# [--half-sense]. A robot died on the sub-cell a survivor's takeover had to stand on (the
+# one facing the link into the dead robot's cells); the survivor bumped into it for ever.
+_DEAD_ON_THE_TAKEOVER_SUB_CELL = [
+    (True, 185, 4, 4, 0.0, Priority.FEWEST, ((3, 22), (1, 0), (2, 74))),
+    (True, 524, 5, 3, 0.15, Priority.FEWEST, ((0, 30), (1, 20))),
+    (True, 670, 8, 5, 0.0, Priority.FEWEST, ((3, 66), (4, 68))),
+    (False, 376, 7, 6, 0.15, Priority.ID, ((0, 114), (3, 83), (4, 43), (5, 77), (2, 14))),
+    (False, 2917, 4, 6, 0.0, Priority.FEWEST, ((1, 18),)),
+    (False, 4907, 4, 5, 0.0, Priority.ID, ((1, 44), (4, 8), (0, 26), (2, 69))),
+]
+
+
+@pytest.mark.parametrize(("half", "seed", "size", "k", "density", "priority", "deaths"),
+                         _DEAD_ON_THE_TAKEOVER_SUB_CELL)
+def test_a_takeover_decides_from_beside_a_body_for_good_and_walks_round_it(
+        half: bool, seed: int, size: int, k: int, density: float, priority: Priority,
+        deaths: tuple[tuple[int, int], ...], monkeypatch: pytest.MonkeyPatch) -> None:
+    world = random_world(seed, size, size, density)
+    starts = random_starts(world, k, seed)
+    config = SimConfig(seed=seed, delay=(1, 6), claim_wait=1, priority=priority,
+                       failures=deaths, half_sense=half)
+    result = LockstepSim(world, starts, config).run()
+    assert result.finished and not missed(result).any()
+    # the check can fail: a walk that keeps trying to reach its target never ends
+    stubborn_from = watch.walk_step
+
+    def stubborn(m: Robot, to: SubCell, target: SubCell) -> Generator[Any, object, bool]:
+        while not (yield from stubborn_from(m, to, target)):
+            pass
+        return True
+
+    monkeypatch.setattr(watch, "walk_step", stubborn)
+    stuck = LockstepSim(world, starts, replace(config, max_steps=result.steps + 2_000)).run()
+    assert not stuck.finished

@@ -27,6 +27,10 @@ claims" holds throughout):
   forced collisions and deaths) never moves again, and the sub-cell under a body cannot be
   covered anyway.
   The same holds on the way to a takeover (``walk_step``), where nothing is left out.
+  When the body for good stands on the sub-cell the takeover must stand on (a robot died
+  facing the link: forced collisions with deaths), the robot decides the link's side from
+  beside and covers what it grew into by a way round that sub-cell
+  (``cover_from_beside``), as ``reach`` does in a walk.
 - **Move out of a passage when done.** A robot that has nothing left to do and stands in a
   passage (its start cell was lost, perhaps after it finished) moves to the nearest
   sub-cell of a cell it still owns, if it has one, rather than stand where the winner's
@@ -41,7 +45,7 @@ from collections.abc import Generator, Iterable
 from planner.geometry import sub_cells_of
 from planner.ormstc.robot import ANSWER, UNTIL, Action, Flow, Robot
 from planner.ormstc.types import Cell, Move, MoveResult, SubCell
-from planner.ormstc.walk import DELTA, cell_of, neighbour, side_of, successor
+from planner.ormstc.walk import DELTA, cell_of, neighbour, side_of, sub_facing, successor
 
 # Both need the robot held up for ``MachineConfig.hold_up`` too (twice that to step aside):
 # an agent backs off for tens of ms after a bump, and a body ahead may take seconds to move.
@@ -205,11 +209,12 @@ def _aside(m: Robot, blocked: SubCell, turn: int) -> SubCell | None:
     return choices[turn % len(choices)] if choices else None
 
 
-def walk_step(m: Robot, to: SubCell, target: SubCell) -> Flow:
+def walk_step(m: Robot, to: SubCell, target: SubCell) -> Generator[Action, object, bool]:
     """One step of a walk over the robot's own cells to ``target`` (watch.walk_to, on the
     way to a takeover): a body for good in the way (held up ``STUCK_AFTER`` times and four
     hold-ups) is walked round by a shortest way to ``target``; the cells on the way are
-    walked already, so nothing is left out."""
+    walked already, so nothing is left out. False when the body for good stands on
+    ``target`` itself (a robot died there): no way round leads onto it."""
     route, bumped, began = [to], 0, m.now
     while route:
         result = yield (ANSWER, Move(route[0]))
@@ -219,10 +224,35 @@ def walk_step(m: Robot, to: SubCell, target: SubCell) -> Flow:
         m.bumps += 1
         bumped += 1
         if bumped >= STUCK_AFTER and m.now - began >= 4 * m.config.hold_up:
+            if route[0] == target:
+                return False
             found = way_round(m, [target], {route[0]}, nearest=True)
             if found is not None:
                 route, bumped, began = found, 0, m.now
         yield (UNTIL, m.now + m.backoff())
+    return True
+
+
+def cover_from_beside(m: Robot, cell: Cell, side: int) -> Flow:
+    """Cover what the robot just grew into from ``cell`` on ``side`` (a takeover) when the
+    sub-cell facing it holds a body for good: the walk from that sub-cell on, round it by
+    a shortest way over the robot's own cells to the walk's first sub-cell it can reach
+    (``way_round`` weighs the way there against the walk left), then on as ``cover``."""
+    facing = sub_facing(cell, side)
+    ahead: list[SubCell] = []  # the walk from ``facing`` on until it is back in ``cell``
+    sub = successor(facing, m.has_edge)
+    while cell_of(sub) != cell and len(ahead) < AHEAD:
+        ahead.append(sub)
+        sub = successor(sub, m.has_edge)
+    avoid = {facing}
+    while m.pos not in ahead:
+        found = way_round(m, ahead, avoid)
+        if found is None:
+            return None  # walled in by bodies: what it grew into cannot be reached
+        if not (yield from walk_step(m, found[0], found[-1])):
+            avoid.add(found[-1])  # a body for good on that one too
+    _left_out(m, ahead[:ahead.index(m.pos)])
+    yield from m.cover(cell)  # on from here, as from ``facing``, until back in ``cell``
     return None
 
 

@@ -10,10 +10,11 @@ target: the robot withdraws its completion, walks round its own tree to the near
 from __future__ import annotations
 
 import math
+from collections.abc import Generator
 
 from planner.ormstc.connections import Link
-from planner.ormstc.passage import leave_passage, walk_step
-from planner.ormstc.robot import WAKE, Flow, Robot
+from planner.ormstc.passage import cover_from_beside, leave_passage, walk_step
+from planner.ormstc.robot import WAKE, Action, Flow, Robot
 from planner.ormstc.types import CompletionMsg, Done, SubCell, WithdrawalMsg
 from planner.ormstc.walk import (
     cell_of,
@@ -83,21 +84,25 @@ def take_over(m: Robot, link: Link) -> Flow:
     """Lines 30-36: walk to my side of the connection and grow into the freed cell."""
     mine, theirs = link
     side = side_towards(mine, theirs)
-    yield from walk_to(m, sub_facing(mine, side))
+    reached = yield from walk_to(m, sub_facing(mine, side))
     m.connections.drop(link)
     if mine not in m.mine:
         return None  # given up in a conflict on the way (planner/ormstc/conflicts.py)
     m.decided[mine] = m.decided.get(mine, 0) & ~(1 << side)
-    yield from m.decide(mine, side)
+    yield from m.decide(mine, side)  # from beside when a body for good stands there
     if m.has_edge(mine, side):
-        yield from m.cover(mine)
+        yield from (m.cover(mine) if reached else cover_from_beside(m, mine, side))
     return None
 
 
-def walk_to(m: Robot, target: SubCell) -> Flow:
+def walk_to(m: Robot, target: SubCell) -> Generator[Action, object, bool]:
+    """Along the own tree, the shorter way round, to ``target``; False if a body for good
+    stands on it (passage.walk_step)."""
     n = 4 * len(m.mine)
     ahead = walk_index(m.pos, m.has_edge, n).get(target, 0)
     step = successor if ahead <= n - ahead else predecessor
     while m.pos != target and cell_of(target) in m.mine:
-        yield from walk_step(m, step(m.pos, m.has_edge), target)
-    return None
+        reached = yield from walk_step(m, step(m.pos, m.has_edge), target)
+        if not reached:
+            return False
+    return True
