@@ -103,19 +103,22 @@ class CycleReach:
             if reach[pick] <= at:
                 return None
             if reach[pick] < end and rows.size > 1:
-                pick = self._look_ahead(bound, rows, reach, end)
+                pick = self._look_ahead(bound, at, rows, reach, end)
             robot, stop = int(rows[pick]), int(reach[pick])
             free[robot] = False
             out.append(Stretch(robot, at, min(stop, end), bool(forward[pick])))
             at = stop
         return out
 
-    def _look_ahead(self, bound: int, rows: IntArray, reach: IntArray, end: int) -> int:
-        """Index into ``rows`` of the robot to take: among the LOOKAHEAD farthest-reaching,
-        the one after which the next ``self.depth`` picks (chosen the same way) get
-        farthest."""
+    def _look_ahead(self, bound: int, at: int, rows: IntArray, reach: IntArray,
+                    end: int) -> int:
+        """Index into ``rows`` of the robot to take: among the LOOKAHEAD farthest-reaching
+        (that reach past ``at``), the one after which the next ``self.depth`` picks (chosen
+        the same way) get farthest."""
         best, best_after = -1, -1
         for pick in np.argsort(-reach, kind="stable")[:LOOKAHEAD].tolist():
+            if reach[pick] <= at:
+                break  # it would cover nothing: never worth a robot
             after = self._farthest(bound, int(reach[pick]), np.delete(rows, pick), end,
                                    self.depth)
             if after > best_after:
