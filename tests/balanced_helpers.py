@@ -99,7 +99,10 @@ def check_balanced(grid: OccupancyGrid, starts: tuple[SubCell, ...], seed: int) 
         check_plan(plan, area, max_visits=2)  # optimal MSTC: sub-cells at most twice
         return
     parts = partition(area, seed=seed)  # the regions grown from the starts, no walks
-    assert parts is not None
+    if parts is None:  # shared start cells wall part of the map off: regions grown elsewhere
+        assert relaxed(plan.notes)
+        check_plan(plan, area, max_visits=len(starts) + 1, own_revisits_only=False)
+        return
     check_regions(parts, area.cells, starts)
     assert sum(parts.sizes) == area.n
     if relaxed(plan.notes):

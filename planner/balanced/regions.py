@@ -81,7 +81,7 @@ def plan_regions(area: WorkArea, *, seed: int = 0
     """
     state = _partition_state(area, seed, None, None)
     if state is None:
-        return None, {}
+        return _elsewhere(area, seed)
     goal = _ideal(state)
     best = state
     best_routes: dict[int, tuple[SubCell, ...]] = {}
@@ -111,6 +111,24 @@ def plan_regions(area: WorkArea, *, seed: int = 0
     if max(best.load) > goal and best_routes:
         best, best_routes = _pulled_back(area, seed, best, best_routes)
     return best.to_partition(best.transfers), best_routes
+
+
+def _elsewhere(area: WorkArea, seed: int
+               ) -> tuple[Partition | None, dict[int, tuple[SubCell, ...]]]:
+    """Regions grown from seeds away from the starts (assign.py, then the pull-back), for
+    when robots sharing start cells wall part of the map off from the regions grown round
+    the starts; (None, {}) if those cannot be made either."""
+    k = len(area.starts)
+    goal = -(-area.n // k)
+    goal += goal % 2
+    assigned = assigned_partition(
+        area, lambda starts, offsets: _partition_state(area, seed, starts, offsets), goal)
+    if assigned is None:
+        return None, {}
+    best, routes = assigned
+    if max(best.load) > goal and routes:
+        best, routes = _pulled_back(area, seed, best, routes)
+    return best.to_partition(best.transfers), routes
 
 
 def _pulled_back(area: WorkArea, seed: int, state: PartitionState,
