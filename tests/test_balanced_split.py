@@ -189,9 +189,10 @@ def test_the_registry_keeps_the_best_of_regions_opt_and_split_and_the_split_wins
         assert plan.makespan < min(regions.makespan, opt.makespan)
         assert any(note.startswith(WALK_OUT) for note in plan.notes)
         check_plan(plan, area, max_visits=len(area.starts) + 1, own_revisits_only=False)
-        result = simulate_failures(plan, {plan.robots[2].robot: 11}, detection_delay=1,
-                                   recovery="takeover")
-        assert result.complete
+        for recovery in ("takeover", "rebalance"):
+            result = simulate_failures(plan, {plan.robots[2].robot: 11}, detection_delay=1,
+                                       recovery=recovery)
+            assert result.complete, recovery
     assert wins >= 6
 
 
