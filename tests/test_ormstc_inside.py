@@ -9,8 +9,9 @@ tests/test_ormstc_conflicts.py's forced-collision property runs with ``half_sens
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -130,3 +131,37 @@ def test_a_dead_robots_body_inside_gives_the_cell_up(
     monkeypatch.setattr(inside, "_dead_body", lambda _m, _cell: False)
     stuck = LockstepSim(world, starts, replace(config, max_steps=result.steps + 2_000)).run()
     assert not stuck.finished or stuck.steps >= result.steps + 50
+
+
+# (seed, cells a side, robots, density, priority, deaths): forced collisions (a claim window
+# of one step) and deaths, bench_forced_collisions.py --wide --deaths --half-sense. The
+# robot entered a cell to look, saw a body inside and turned to step back, but a robot had
+# died on the sub-cell it came from: it bumped into that body for ever.
+_DEAD_WHERE_IT_CAME_FROM = [
+    (4747, 5, 6, 0.15, Priority.ID, ((1, 10), (5, 8), (2, 43))),
+    (4750, 8, 4, 0.0, Priority.FEWEST, ((3, 123), (1, 54))),
+]
+
+
+@pytest.mark.parametrize(("seed", "size", "k", "density", "priority", "deaths"),
+                         _DEAD_WHERE_IT_CAME_FROM)
+def test_a_robot_that_cannot_step_back_out_keeps_the_cell_and_walks_on(
+        seed: int, size: int, k: int, density: float, priority: Priority,
+        deaths: tuple[tuple[int, int], ...], monkeypatch: pytest.MonkeyPatch) -> None:
+    world = random_world(seed, size, size, density)
+    starts = random_starts(world, k, seed)
+    config = SimConfig(seed=seed, delay=(1, 6), claim_wait=1, priority=priority,
+                       failures=deaths, half_sense=True)
+    result = LockstepSim(world, starts, config).run()
+    assert result.finished and not missed(result).any()
+    # the check can fail: stepping back until it works, the run never ends
+    stubborn_from = inside.walk_step
+
+    def stubborn(m: Robot, to: SubCell, target: SubCell) -> Generator[Any, object, bool]:
+        while not (yield from stubborn_from(m, to, target)):
+            pass
+        return True
+
+    monkeypatch.setattr(inside, "walk_step", stubborn)
+    stuck = LockstepSim(world, starts, replace(config, max_steps=result.steps + 2_000)).run()
+    assert not stuck.finished

@@ -14,7 +14,9 @@ edge, as if it had seen it from outside. Any other body is not a reason: it is a
 rival's that grew into the same cell when messages came late (a conflict, conflicts.py,
 which the ids resolve; the rival may cede the cell to this robot's edge, so giving it up
 could leave it to nobody). The robot then steps back, looks from outside as before, and
-keeps the cell unless that look shows an obstacle.
+keeps the cell unless that look shows an obstacle. A robot that cannot step back (a robot
+died on the sub-cell it came from: held up for good, passage.walk_step) keeps the cell and
+walks on from inside, where passage.reach walks round what is in the way.
 
 Safety is that of an ordinary grow: the tree edge is broadcast when the claim is won, as
 always, so the claim window's argument is unchanged (a later claim hears the edge), and the
@@ -29,6 +31,7 @@ tests/test_ormstc_looks.py (the driver's code, one robot) and tests/test_ormstc_
 
 from __future__ import annotations
 
+from planner.ormstc.passage import walk_step
 from planner.ormstc.robot import ANSWER, Flow, Robot
 from planner.ormstc.types import Cell, CellStatus, Move, MoveResult, Sense
 from planner.ormstc.walk import DELTA, neighbour
@@ -52,7 +55,10 @@ def enter_to_look(m: Robot, cell: Cell, side: int) -> Flow:
         status = m.sensed(child, result)
         if status is CellStatus.FREE:
             return None
-        yield from m.move_to(here)
+        if not (yield from walk_step(m, here, here)):
+            # a robot died where it came from: it cannot step back, so it keeps the cell and
+            # the walk goes on from inside (passage.reach walks round what is in the way)
+            return None
     else:
         m.bumps += 1
         status = CellStatus.ROBOT
