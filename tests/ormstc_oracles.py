@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Generator, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -43,3 +44,16 @@ def missed(result: SimResult) -> BoolArray:
     """Sub-cells the oracle requires that nobody covered."""
     need = must_cover(result.world, survivors_starts(result), body_positions(result))
     return need & (result.visits == 0)
+
+
+WalkStep = Callable[[Any, SubCell, SubCell], Generator[Any, object, bool]]
+
+
+def never_giving_up(step: WalkStep) -> WalkStep:
+    """``passage.walk_step`` as it was before bodies for good were recognised: it tries
+    again until it gets there (the counterfactual of the pinned runs that hung so)."""
+    def again(m: Any, to: SubCell, target: SubCell) -> Generator[Any, object, bool]:
+        while not (yield from step(m, to, target)):
+            pass
+        return True
+    return again

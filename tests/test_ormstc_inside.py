@@ -9,13 +9,12 @@ tests/test_ormstc_conflicts.py's forced-collision property runs with ``half_sens
 
 from __future__ import annotations
 
-from collections.abc import Generator, Iterator
+from collections.abc import Iterator
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 import pytest
-from ormstc_oracles import missed
+from ormstc_oracles import missed, never_giving_up
 from test_ormstc_conflicts import check_resolved
 from test_ormstc_sim import random_starts, random_world
 
@@ -155,13 +154,6 @@ def test_a_robot_that_cannot_step_back_out_keeps_the_cell_and_walks_on(
     result = LockstepSim(world, starts, config).run()
     assert result.finished and not missed(result).any()
     # the check can fail: stepping back until it works, the run never ends
-    stubborn_from = inside.walk_step
-
-    def stubborn(m: Robot, to: SubCell, target: SubCell) -> Generator[Any, object, bool]:
-        while not (yield from stubborn_from(m, to, target)):
-            pass
-        return True
-
-    monkeypatch.setattr(inside, "walk_step", stubborn)
+    monkeypatch.setattr(inside, "walk_step", never_giving_up(inside.walk_step))
     stuck = LockstepSim(world, starts, replace(config, max_steps=result.steps + 2_000)).run()
     assert not stuck.finished

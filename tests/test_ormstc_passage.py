@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from collections.abc import Generator
 from dataclasses import dataclass, field, replace
-from typing import Any, TypeVar, cast
+from typing import TypeVar, cast
 
 import pytest
-from ormstc_oracles import missed
+from ormstc_oracles import missed, never_giving_up
 from test_ormstc_sim import random_starts, random_world
 
 from planner.ormstc import passage, watch
@@ -188,13 +188,6 @@ def test_a_takeover_decides_from_beside_a_body_for_good_and_walks_round_it(
     result = LockstepSim(world, starts, config).run()
     assert result.finished and not missed(result).any()
     # the check can fail: a walk that keeps trying to reach its target never ends
-    stubborn_from = watch.walk_step
-
-    def stubborn(m: Robot, to: SubCell, target: SubCell) -> Generator[Any, object, bool]:
-        while not (yield from stubborn_from(m, to, target)):
-            pass
-        return True
-
-    monkeypatch.setattr(watch, "walk_step", stubborn)
+    monkeypatch.setattr(watch, "walk_step", never_giving_up(watch.walk_step))
     stuck = LockstepSim(world, starts, replace(config, max_steps=result.steps + 2_000)).run()
     assert not stuck.finished
