@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Generator, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from planner.grid import coarsen, expand, label_components
-from planner.ormstc.lockstep import SimResult
+from planner.ormstc.lockstep import LockstepSim, SimConfig, SimResult
+from planner.ormstc.types import Priority
 from planner.types import BoolArray, OccupancyGrid, SubCell
 
 
@@ -57,3 +59,22 @@ def never_giving_up(step: WalkStep) -> WalkStep:
             pass
         return True
     return again
+
+
+def forced_with_deaths(seed: int, priority: Priority, deaths: tuple[tuple[int, int], ...],
+                       *, half_sense: bool) -> SimConfig:
+    """The lockstep of ``bench_forced_collisions.py --wide --deaths``: a claim window of one
+    step (claims collide), message delays of 1-6 steps, robots dying at given steps."""
+    return SimConfig(seed=seed, delay=(1, 6), claim_wait=1, priority=priority, failures=deaths,
+                     half_sense=half_sense)
+
+
+def check_the_rule_ends_it(world: OccupancyGrid, starts: Sequence[SubCell], config: SimConfig,
+                           take_away: Callable[[], None]) -> None:
+    """A pinned run ends with nothing missed; with its rule taken away (``take_away``, a
+    monkeypatch) the same run does not end within 2 000 steps more: the check can fail."""
+    result = LockstepSim(world, starts, config).run()
+    assert result.finished and not missed(result).any()
+    take_away()
+    stuck = LockstepSim(world, starts, replace(config, max_steps=result.steps + 2_000)).run()
+    assert not stuck.finished

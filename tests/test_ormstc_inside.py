@@ -14,7 +14,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from ormstc_oracles import missed, never_giving_up
+from ormstc_oracles import (
+    check_the_rule_ends_it,
+    forced_with_deaths,
+    missed,
+    never_giving_up,
+)
 from test_ormstc_conflicts import check_resolved
 from test_ormstc_sim import random_starts, random_world
 
@@ -148,12 +153,8 @@ def test_a_robot_that_cannot_step_back_out_keeps_the_cell_and_walks_on(
         seed: int, size: int, k: int, density: float, priority: Priority,
         deaths: tuple[tuple[int, int], ...], monkeypatch: pytest.MonkeyPatch) -> None:
     world = random_world(seed, size, size, density)
-    starts = random_starts(world, k, seed)
-    config = SimConfig(seed=seed, delay=(1, 6), claim_wait=1, priority=priority,
-                       failures=deaths, half_sense=True)
-    result = LockstepSim(world, starts, config).run()
-    assert result.finished and not missed(result).any()
-    # the check can fail: stepping back until it works, the run never ends
-    monkeypatch.setattr(inside, "walk_step", never_giving_up(inside.walk_step))
-    stuck = LockstepSim(world, starts, replace(config, max_steps=result.steps + 2_000)).run()
-    assert not stuck.finished
+    # the rule taken away: stepping back until it works, the run never ends
+    check_the_rule_ends_it(
+        world, random_starts(world, k, seed),
+        forced_with_deaths(seed, priority, deaths, half_sense=True),
+        lambda: monkeypatch.setattr(inside, "walk_step", never_giving_up(inside.walk_step)))

@@ -10,15 +10,14 @@ takeovers that stand beside a body for good (at the end).
 from __future__ import annotations
 
 from collections.abc import Generator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import TypeVar, cast
 
 import pytest
-from ormstc_oracles import missed, never_giving_up
+from ormstc_oracles import check_the_rule_ends_it, forced_with_deaths, never_giving_up
 from test_ormstc_sim import random_starts, random_world
 
 from planner.ormstc import passage, watch
-from planner.ormstc.lockstep import LockstepSim, SimConfig
 from planner.ormstc.robot import ANSWER, UNTIL, Robot
 from planner.ormstc.types import Cell, MachineConfig, Move, MoveResult, Priority, SubCell
 from planner.ormstc.walk import EAST, WEST, cell_of, side_of
@@ -182,12 +181,8 @@ def test_a_takeover_decides_from_beside_a_body_for_good_and_walks_round_it(
         half: bool, seed: int, size: int, k: int, density: float, priority: Priority,
         deaths: tuple[tuple[int, int], ...], monkeypatch: pytest.MonkeyPatch) -> None:
     world = random_world(seed, size, size, density)
-    starts = random_starts(world, k, seed)
-    config = SimConfig(seed=seed, delay=(1, 6), claim_wait=1, priority=priority,
-                       failures=deaths, half_sense=half)
-    result = LockstepSim(world, starts, config).run()
-    assert result.finished and not missed(result).any()
-    # the check can fail: a walk that keeps trying to reach its target never ends
-    monkeypatch.setattr(watch, "walk_step", never_giving_up(watch.walk_step))
-    stuck = LockstepSim(world, starts, replace(config, max_steps=result.steps + 2_000)).run()
-    assert not stuck.finished
+    # the rule taken away: a walk that keeps trying to reach its target never ends
+    check_the_rule_ends_it(
+        world, random_starts(world, k, seed),
+        forced_with_deaths(seed, priority, deaths, half_sense=half),
+        lambda: monkeypatch.setattr(watch, "walk_step", never_giving_up(watch.walk_step)))
