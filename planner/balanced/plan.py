@@ -11,7 +11,7 @@ from planner.cycle import stc_cycle
 from planner.grid import WorkArea
 from planner.offline.plan import make_plan
 from planner.trees import build_tree
-from planner.types import Plan, RobotPlan, SpanningTree
+from planner.types import Cycle, Plan, RobotPlan, SpanningTree
 
 ALGO = "balanced"
 WALK_OUT = "balanced walk-out"  # note prefix of plans in which some sub-cells are revisited
@@ -26,13 +26,17 @@ def plan_for(area: WorkArea, tree: SpanningTree, algo: str, seed: int = 0) -> Pl
     so ``--algo balanced`` is never worse than ``--algo opt``; and a split of that tree's
     cycle into stretches any robot may walk to (``cyclesplit``). Ties keep the earlier."""
     del algo
-    return better_split(better_than_opt(balanced_plan(area, seed=seed), area, tree), area,
+    opt = make_plan(area, tree, "opt")  # its cycle is the tree's, the split's too
+    return better_split(_shorter_of(balanced_plan(area, seed=seed), opt, tree), area, opt.cycle,
                         tree)
 
 
 def better_than_opt(plan: Plan, area: WorkArea, tree: SpanningTree) -> Plan:
     """``plan``, or optimal MSTC on ``tree`` (noted OPT_KEPT) when that finishes sooner."""
-    opt = make_plan(area, tree, "opt")
+    return _shorter_of(plan, make_plan(area, tree, "opt"), tree)
+
+
+def _shorter_of(plan: Plan, opt: Plan, tree: SpanningTree) -> Plan:
     if opt.makespan >= plan.makespan:
         return plan
     note = (f"{OPT_KEPT}: optimal MSTC on the given tree plans {opt.makespan} moves, the "
@@ -41,10 +45,9 @@ def better_than_opt(plan: Plan, area: WorkArea, tree: SpanningTree) -> Plan:
                 notes=(note, *opt.notes))
 
 
-def better_split(plan: Plan, area: WorkArea, tree: SpanningTree) -> Plan:
-    """``plan``, or a split of ``tree``'s cycle (noted SPLIT and WALK_OUT) when one
+def better_split(plan: Plan, area: WorkArea, cycle: Cycle, tree: SpanningTree) -> Plan:
+    """``plan``, or a split of ``cycle`` (``tree``'s, noted SPLIT and WALK_OUT) when one
     finishes sooner: every robot walks to one end of a stretch of the cycle and covers it."""
-    cycle = stc_cycle(tree, start=area.starts[0])
     robots = split_cycle(area, cycle, below=plan.makespan)
     if robots is None:
         return plan

@@ -82,7 +82,7 @@ def plan_regions(area: WorkArea, *, seed: int = 0
     state = _partition_state(area, seed, None, None)
     if state is None:
         return _elsewhere(area, seed)
-    goal = _ideal(state)
+    goal = _ideal(sum(state.load), state.k)
     best = state
     best_routes: dict[int, tuple[SubCell, ...]] = {}
     made = 1
@@ -118,9 +118,7 @@ def _elsewhere(area: WorkArea, seed: int
     """Regions grown from seeds away from the starts (assign.py, then the pull-back), for
     when robots sharing start cells wall part of the map off from the regions grown round
     the starts; (None, {}) if those cannot be made either."""
-    k = len(area.starts)
-    goal = -(-area.n // k)
-    goal += goal % 2
+    goal = _ideal(area.n, len(area.starts))
     assigned = assigned_partition(
         area, lambda starts, offsets: _partition_state(area, seed, starts, offsets), goal)
     if assigned is None:
@@ -150,9 +148,9 @@ def _pulled_back(area: WorkArea, seed: int, state: PartitionState,
     return state, routes
 
 
-def _ideal(state: PartitionState) -> int:
+def _ideal(total: int, k: int) -> int:
     """The average load rounded up to an even number of sub-cells: balancing stops there."""
-    ideal = -(-sum(state.load) // state.k)
+    ideal = -(-total // k)
     return ideal + ideal % 2
 
 
