@@ -96,7 +96,7 @@ def measure(spec: str, k: int, seed: int, row: Row) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--families", default=",".join(FAMILIES),
-                        help=f"comma-separated ({','.join(FAMILIES)})")
+                        help="comma-separated (" + ",".join(FAMILIES).replace("%", "%%") + ")")
     parser.add_argument("--ks", default=",".join(map(str, SMALL_KS + LARGE_KS)),
                         help="team sizes; up to 30 on the small maps, above on the large ones")
     parser.add_argument("--seeds", type=int, default=3, help="instances per family and k (3)")

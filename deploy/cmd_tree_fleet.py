@@ -62,7 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--kill", type=kill_order, metavar="ROBOT@STEP", action="append",
                         default=[],
                         help="SIGKILL robot ROBOT's agent once step STEP is complete; the "
-                             "survivors repair the trail and finish (repeatable)")
+                             "survivors repair the trail and finish (repeatable; orders "
+                             "for a later step wait until the earlier robot is removed)")
     parser.add_argument("--settle", type=positive, default=1.0, metavar="SECONDS",
                         help="how long agents wait for a dead robot's last report (default 1)")
     parser.add_argument("--json", action="store_true", help="print one JSON object at the end")

@@ -52,6 +52,15 @@ class KillSchedule:
         self.pending = [o for o in self.pending if o not in ready]
         return ready
 
+    def due_earliest_step(self, step: int) -> list[KillOrder]:
+        """Like ``due(step=step)``, but only the orders of the earliest step among those due;
+        the later ones stay in the schedule (tree missions apply deaths one step at a time)."""
+        ready = [o for o in self.pending if o.is_due(None, None, step)]
+        first = min((o.step for o in ready if o.step is not None), default=None)
+        taken = [o for o in ready if o.step == first]
+        self.pending = [o for o in self.pending if o not in taken]
+        return taken
+
     def waits_on_coverage(self, coverage: float) -> bool:
         """True if a coverage-triggered order has become due (without taking it)."""
         return any(o.percent is not None and coverage >= o.percent for o in self.pending)

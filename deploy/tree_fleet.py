@@ -101,6 +101,7 @@ class TreeFleet:
         self.radio: Child | None = None
         self.agents: list[Child] = []
         self.killed: list[str] = []
+        self.kill_ordered: list[int] = []  # robots killed by a --kill order, in order
         self.t0 = time.monotonic()
         self.first_report: float | None = None
         self.covered_at: float | None = None
@@ -246,7 +247,14 @@ class TreeFleet:
         return None
 
     def _maybe_kill(self) -> None:
-        for order in self.kills.due(step=self.observer.complete):
+        # Orders for different steps are carried out one death at a time: a later order waits
+        # until the team has removed the robot of the earlier one. A launcher that looks late
+        # (a loaded machine) would otherwise kill both in one tick, inside one settle period,
+        # which is the case docs/treecover.md ("Trail repair") does not cover.
+        if any(robot not in self.observer.deaths for robot in self.kill_ordered):
+            return
+        for order in self.kills.due_earliest_step(self.observer.complete):
+            self.kill_ordered.append(order.robot)
             self.supervisor.kill_agent(order.robot)
             self.killed.append(f"robot {order.robot} killed (SIGKILL) after step "
                                f"{self.observer.complete}")

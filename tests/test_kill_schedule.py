@@ -38,6 +38,19 @@ def test_an_order_by_step_fires_for_tree_missions() -> None:
     assert [o.robot for o in schedule.due(step=4)] == [1]
 
 
+def test_tree_orders_passed_together_are_handed_out_one_step_at_a_time() -> None:
+    """A launcher that looks late finds steps 4 and 12 both passed: it gets the step-4 orders
+    (both robots of that step) and the step-12 one only on a later call."""
+    order = parse_kill("1@3").__class__
+    schedule = KillSchedule([order(robot=5, step=12), order(robot=2, step=4),
+                             order(robot=3, step=4)])
+    assert schedule.due_earliest_step(3) == []
+    assert sorted(o.robot for o in schedule.due_earliest_step(13)) == [2, 3]
+    assert [o.robot for o in schedule.pending] == [5]
+    assert [o.robot for o in schedule.due_earliest_step(13)] == [5]
+    assert schedule.due_earliest_step(99) == []
+
+
 def test_progress_kills_accept_exactly_0_to_100_percent() -> None:
     assert parse_kill("0@progress=0").percent == 0.0
     assert parse_kill("0@progress=100").percent == 100.0
