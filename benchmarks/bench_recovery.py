@@ -4,6 +4,7 @@
     .venv/bin/python benchmarks/bench_recovery.py --seeds 5 --k 6 --coverage 0.3
     .venv/bin/python benchmarks/bench_recovery.py --algos opt,balanced --worlds office
     .venv/bin/python benchmarks/bench_recovery.py --half                # k/2 deaths, random times
+    .venv/bin/python benchmarks/bench_recovery.py --replan-scale rooms:120x120:1:100
 
 Lockstep replays (planner.offline.lockstep / planner.balanced.takeover, unit moves, death
 known at once). For each instance the fault-free plan is replayed once to find the first
@@ -55,9 +56,10 @@ def generated(rows: int, cols: int, obstacles: int, k: int, seed: int) -> WorkAr
     return work_area(grid, random_starts(grid, k, seed))
 
 
-def instances(worlds: list[str], k: int, seeds: int) -> Iterator[tuple[str, WorkArea, int]]:
+def instances(worlds: list[str], k: int, seeds: int,
+              first: int = 0) -> Iterator[tuple[str, WorkArea, int]]:
     for world in worlds:
-        for seed in range(seeds):
+        for seed in range(first, first + seeds):
             if world == "office":
                 grid = resolve_world("office")
                 yield world, work_area(grid, random_starts(grid, k, seed)), seed
@@ -137,13 +139,39 @@ def main_half(args: argparse.Namespace) -> None:
     print(f"{'world':<18} {'algo':<9} {'takeover':>15} {'rebalance':>15} {'w/d/b':>18}")
     for algo in args.algos.split(","):
         by_world: dict[str, list[tuple[float, ...]]] = {}
-        for name, area, seed in instances(worlds, args.k, args.seeds):
+        for name, area, seed in instances(worlds, args.k, args.seeds, args.first_seed):
             by_world.setdefault(name, []).extend(measure_half(algo, area, seed))
         for name, rows in by_world.items():
             take, rebal = [r[0] for r in rows], [r[1] for r in rows]
             print(f"{name:<18} {algo:<9} {statistics.mean(take):>6.2f} (≤{max(take):.2f}) "
                   f"{statistics.mean(rebal):>6.2f} (≤{max(rebal):.2f}) "
                   f"{traffic_cell(rows):>18}")
+
+
+def main_replan_scale(spec: str, k: int) -> None:
+    """CPU of one re-plan (planner.offline.rebalance) on a large map: robot 2 dies when
+    every robot has walked 30 % and 60 % of its balanced plan (the agents each compute it)."""
+    from planner.offline.rebalance import Survivor, plan_order, rebalance
+
+    grid = resolve_world(spec)
+    area = work_area(grid, random_starts(grid, k, 1))
+    plan = make("balanced", area, 1)
+    cycle = plan.cycle
+    print(f"one re-plan on {spec}, k = {k}, n = {area.n} sub-cells, balanced plan of "
+          f"{plan.makespan} moves")
+    for fraction in (0.3, 0.6):
+        covered = np.zeros(cycle.n, dtype=bool)
+        survivors = []
+        for rp in plan.robots:
+            walk = [cycle.position(s) for s in rp.path]
+            done = int(len(walk) * fraction)
+            covered[walk[:done + 1]] = True
+            if rp.robot != 2:
+                survivors.append(Survivor(rp.robot, walk[done], tuple(walk[done + 1:])))
+        started = time.process_time()
+        replan = rebalance(cycle, covered, survivors, plan_order(plan))
+        print(f"at {fraction:.0%}: re-plan makespan {replan.makespan} moves, "
+              f"CPU {time.process_time() - started:.2f} s")
 
 
 def main() -> None:
@@ -153,10 +181,19 @@ def main() -> None:
                         help="office and/or genN (20 x 30 with N random obstacle cells)")
     parser.add_argument("--k", type=int, default=6)
     parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="instances from this seed on (fresh ones: not 0-4)")
     parser.add_argument("--coverage", type=float, default=0.3)
     parser.add_argument("--half", action="store_true",
                         help="k/2 deaths at random times instead of one at --coverage")
+    parser.add_argument("--replan-scale", metavar="WORLD:K",
+                        help="instead: CPU of one re-plan on a large map, e.g. "
+                             "rooms:120x120:1:100")
     args = parser.parse_args()
+    if args.replan_scale:
+        spec, k = args.replan_scale.rsplit(":", 1)
+        main_replan_scale(spec, int(k))
+        return
     if args.half:
         main_half(args)
         return
@@ -169,7 +206,7 @@ def main() -> None:
         by_world: dict[str, list[tuple[float, ...]]] = {}
         base: dict[str, list[int]] = {}
         started = time.perf_counter()
-        for name, area, seed in instances(worlds, args.k, args.seeds):
+        for name, area, seed in instances(worlds, args.k, args.seeds, args.first_seed):
             by_world.setdefault(name, []).extend(measure(algo, area, seed, args.coverage))
             base.setdefault(name, []).append(make(algo, area, seed).makespan)
         spent = (time.perf_counter() - started) / max(len(by_world), 1)

@@ -18,12 +18,7 @@ from hypothesis import strategies as st
 from planner.algorithms import algorithm
 from planner.balanced import balanced_plan
 from planner.balanced.bounds import flow_bound
-from planner.balanced.cyclesplit import (
-    CycleReach,
-    Stretch,
-    give_idle_robots_their_starts,
-    split_cycle,
-)
+from planner.balanced.cyclesplit import give_idle_robots_their_starts, split_cycle
 from planner.balanced.plan import SPLIT, WALK_OUT
 from planner.balanced.takeover import simulate_failures
 from planner.cycle import stc_cycle
@@ -34,6 +29,7 @@ from planner.invariants import check_plan
 from planner.maps import resolve_world
 from planner.offline.plan import make_plan
 from planner.placement import random_starts
+from planner.stretches import Reach, Stretch
 from planner.trees import build_tree
 from planner.types import OccupancyGrid
 
@@ -69,7 +65,7 @@ def cost(walks: np.ndarray, s: Stretch) -> int:
 @given(walk_rows(), st.integers(0, 20), st.integers(0, 13))
 def test_reach_is_the_farthest_end_within_the_bound(walks: np.ndarray, bound: int,
                                                     at: int) -> None:
-    reach = CycleReach(walks)
+    reach = Reach(walks)
     k, n = walks.shape
     at %= n
     ends, _ = reach.reach(at, bound, np.arange(k))
@@ -110,7 +106,7 @@ def check_stretches(walks: np.ndarray, stretches: list[Stretch], bound: int) -> 
 def test_the_greedy_split_is_valid_and_never_beats_brute_force(walks: np.ndarray) -> None:
     k, n = walks.shape
     optimum = brute_force_best(walks)
-    found = CycleReach(walks).best(0, n + int(walks.max()) + 1, np.arange(n))
+    found = Reach(walks).best(0, n + int(walks.max()) + 1, np.arange(n))
     assert found is not None  # one robot covering the whole cycle always fits the top
     bound, stretches = found
     assert bound >= optimum
@@ -139,7 +135,7 @@ def test_the_greedy_finds_the_optimum_on_most_small_lines() -> None:
             for _ in range(n):
                 for i in range(n):
                     row[i] = min(row[i], row[(i - 1) % n] + 1, row[(i + 1) % n] + 1)
-        found = CycleReach(walks).best(0, 2 * n, np.arange(n))
+        found = Reach(walks).best(0, 2 * n, np.arange(n))
         assert found is not None
         exact += found[0] == brute_force_best(walks)
     assert exact >= 54
