@@ -174,6 +174,13 @@ def main_replan_scale(spec: str, k: int) -> None:
               f"CPU {time.process_time() - started:.2f} s")
 
 
+def world_and_k(text: str) -> tuple[str, int]:
+    spec, _, k = text.rpartition(":")
+    if not spec or not k.isdigit() or int(k) < 2:
+        raise argparse.ArgumentTypeError(f"{text!r}: want WORLD:K, e.g. rooms:120x120:1:100")
+    return spec, int(k)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--algos", default="opt,balanced")
@@ -186,13 +193,12 @@ def main() -> None:
     parser.add_argument("--coverage", type=float, default=0.3)
     parser.add_argument("--half", action="store_true",
                         help="k/2 deaths at random times instead of one at --coverage")
-    parser.add_argument("--replan-scale", metavar="WORLD:K",
+    parser.add_argument("--replan-scale", metavar="WORLD:K", type=world_and_k,
                         help="instead: CPU of one re-plan on a large map, e.g. "
                              "rooms:120x120:1:100")
     args = parser.parse_args()
     if args.replan_scale:
-        spec, k = args.replan_scale.rsplit(":", 1)
-        main_replan_scale(spec, int(k))
+        main_replan_scale(*args.replan_scale)
         return
     if args.half:
         main_half(args)
