@@ -168,13 +168,13 @@ def masked(seed: int) -> Cycle:
 
 def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
     """Grid searches a window round two near places first (planner.offline.rebalance.Grid).
-    From three sources of one winding grid (seed 2) to every place within NEAR: every
+    From two sources of one winding grid (seed 2) to every place within NEAR: every
     distance equals the whole-grid search's, every path is that long, a walk of 4-adjacent
     moves, and it goes round a sub-cell avoided when it can. Source 642 has places the
     window reaches only the long way round (checked): the whole grid must take over."""
     cycle = masked(2)
     window_alone_wrong = 0
-    for a in (642, 100, 1000):
+    for a in (642, 1000):
         searcher, whole = Grid(cycle), Grid(cycle).from_source(a)
         ra, ca = cycle.at(a)
         for b in range(cycle.n):
@@ -188,7 +188,7 @@ def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
             path = searcher.path(a, b)
             assert len(path) == whole[rb, cb] and (not path or path[-1] == b)
             check_path_moves([cycle.at(i) for i in (a, *path)])
-            if len(path) > 2 and b % 7 == 0:  # block one sub-cell of it: go round if one can
+            if len(path) > 2 and b % 21 == 0:  # block one sub-cell of it: go round if one can
                 avoid = frozenset({path[len(path) // 2]})
                 around = Grid(cycle).from_source(a, avoid)
                 detour = searcher.path(a, b, avoid)
