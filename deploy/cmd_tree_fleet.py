@@ -116,6 +116,8 @@ def run(args: argparse.Namespace) -> int:
                         mission_seconds=outcome.mission_seconds)
     summary["complete"] = outcome.observed.coverage_time is not None \
         and outcome.observed.visited == tree.n
+    if outcome.kills_left:
+        summary["kills_not_carried_out"] = list(outcome.kills_left)
     RunDir(options.run_dir).write_summary(summary)
     print(json.dumps(summary) if args.json else format_verdict(summary))
     return 0 if summary["verdict"] == "ok" else 1

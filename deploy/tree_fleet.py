@@ -70,6 +70,7 @@ class TreeFleetOutcome:
     radio: RadioStats | None
     wall_seconds: float  # start-up of every process included
     mission_seconds: float | None  # first report to the report that completed coverage
+    kills_left: tuple[str, ...] = ()  # --kill orders never carried out (ROBOT@STEP)
 
 
 def free_endpoint() -> str:
@@ -150,7 +151,8 @@ class TreeFleet:
         mission = None if self.covered_at is None or self.first_report is None else \
             self.covered_at - self.first_report
         return TreeFleetOutcome(ok, message, self.observer.run(), radio,
-                                time.monotonic() - self.t0, mission)
+                                time.monotonic() - self.t0, mission,
+                                tuple(f"{k.robot}@{k.step}" for k in self.kills.pending))
 
     async def _until_recorded(self) -> None:
         """Keep the router up until the recorder has written every outbox report this
@@ -215,6 +217,9 @@ class TreeFleet:
                 return False, failure
             if all(a.returncode is not None for a in self.agents):
                 await self._settle()
+                if self.kills.pending:  # their step never came, or a kill before was not seen
+                    self.say("kill orders not carried out, the mission ended first: " + ", ".join(
+                        f"robot {k.robot} at step {k.step}" for k in self.kills.pending))
                 return True, "every agent finished" + "".join(f"; {k}" for k in self.killed)
             if seen.complete != last_step:
                 last_step, last_change = seen.complete, now

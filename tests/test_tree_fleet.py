@@ -366,3 +366,15 @@ async def test_a_recorder_that_lags_but_keeps_writing_is_waited_for(
     assert outcome.ok, outcome.message
     assert link.written[family] == outcome.observed.transmissions > 30
     assert not any("the recording has" in line for line in said), said[-3:]
+
+
+def test_a_kill_order_whose_step_never_comes_is_named(tmp_path: Path) -> None:
+    """The team covers the tree in 20 steps: an order for step 999 is never carried out, and
+    the launcher says so rather than leave the operator to think the robot died."""
+    done = subprocess.run(mstc("tree-fleet", "--tree", "perfect:N=2,H=3", "--robots", "3",
+                               "--kill", "1@999", "--run-dir", str(tmp_path / "run"), "--json"),
+                          capture_output=True, text=True, timeout=RUN_LIMIT * 2)
+    assert done.returncode == 0, done.stdout + done.stderr
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    assert summary["deaths"] == {} and summary["kills_not_carried_out"] == ["1@999"]
+    assert summary["verdict"] == "ok"
