@@ -380,6 +380,9 @@ async def launch(setup: MissionSetup, settings: UpSettings, endpoint: str, t0: f
                                 outcome=outcome.message)
             view.close()
             print(format_summary(summary), flush=True)
+            if launcher.kills.pending:  # a clean run is no survived kill: say what never came
+                print("  not carried out (the mission ended first): " + ", ".join(
+                    order.describe() for order in launcher.kills.pending), flush=True)
             rd.write_summary(summary.to_json())
             if outcome.code == 0 and not summary.complete:
                 return 1
