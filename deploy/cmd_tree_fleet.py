@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from bus.argtypes import positive, positive_int
@@ -88,6 +89,12 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--kill {max(victims)}@...: robots are 0..{args.robots - 1}")
     if len(set(victims)) != len(victims) or len(victims) >= args.robots:
         raise UsageError("--kill: each robot at most once, and one robot must survive")
+    steps = [order.step for order in args.kill]
+    shared = sorted({step for step in steps if steps.count(step) > 1 and step is not None})
+    if shared:  # allowed (it is how that case is reproduced), but not silently
+        print(f"tree-fleet: warning: kills at the same step ({', '.join(map(str, shared))}) "
+              "land in one settle period; the trail repair does not cover every such pair "
+              "(docs/treecover.md, \"Trail repair\")", file=sys.stderr, flush=True)
     if args.record is not None and not args.record.parent.is_dir():
         raise UsageError(f"--record {args.record}: directory {args.record.parent} does not exist")
     lockstep = run_coverage(tree, args.robots, args.algo)  # also rejects infeasible inputs

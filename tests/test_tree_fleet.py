@@ -378,3 +378,16 @@ def test_a_kill_order_whose_step_never_comes_is_named(tmp_path: Path) -> None:
     summary = json.loads(done.stdout.strip().splitlines()[-1])
     assert summary["deaths"] == {} and summary["kills_not_carried_out"] == ["1@999"]
     assert summary["verdict"] == "ok"
+
+
+def test_kills_at_the_same_step_are_warned_about(tmp_path: Path) -> None:
+    """Two kills of one step land in one settle period, the case the trail repair does not
+    cover: allowed (it reproduces that case), with a warning. The bad --record path stops the
+    command right after the checks, so no fleet starts."""
+    done = subprocess.run(mstc("tree-fleet", "--tree", "perfect:N=2,H=3", "--robots", "4",
+                               "--kill", "1@3", "--kill", "2@3", "--kill", "3@5",
+                               "--record", str(tmp_path / "no" / "such.jsonl")),
+                          capture_output=True, text=True, timeout=RUN_LIMIT)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "warning: kills at the same step (3) land in one settle period" in done.stderr
+    assert "does not exist" in done.stderr and "Traceback" not in done.stderr
