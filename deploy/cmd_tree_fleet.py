@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     if len(set(victims)) != len(victims) or len(victims) >= args.robots:
         raise UsageError("--kill: each robot at most once, and one robot must survive")
     steps = [order.step for order in args.kill]
-    shared = sorted({step for step in steps if steps.count(step) > 1 and step is not None})
+    shared = sorted({step for step in steps if step is not None and steps.count(step) > 1})
     if shared:  # allowed (it is how that case is reproduced), but not silently
         print(f"tree-fleet: warning: kills at the same step ({', '.join(map(str, shared))}) "
               "land in one settle period; the trail repair does not cover every such pair "

@@ -365,11 +365,11 @@ def _greedy_split(grid: Grid, work: list[int], walked: IntArray, loads: IntArray
         return None
     pieces = tuple((s.first, s.end) for s in found[1])
     chosen = tuple(takers[s.robot] for s in found[1])
-    costs = _piece_costs(grid, work, walked, [ends[t] for t in chosen], list(pieces))
-    finish_of_piece = costs[np.arange(len(pieces)), np.arange(len(pieces))] + loads[list(chosen)]
+    # its load, the walk to the nearer end, the piece: the equal cut's cost, from ``walks``
+    finish = [int(min(walks[s.robot, s.first], walks[s.robot, s.end - 1])
+                  + walked[s.end - 1] - walked[s.first]) for s in found[1]]
     idle = [int(loads[i]) for i in range(len(loads)) if i not in set(chosen)]
-    return _Split(int(max([*finish_of_piece.tolist(), *idle])), int(finish_of_piece.sum()),
-                  pieces, chosen)
+    return _Split(max(finish + idle), sum(finish), pieces, chosen)
 
 
 def _shifted(bounds: list[int], finish: IntArray) -> list[int]:
