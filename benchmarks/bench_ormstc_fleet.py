@@ -14,7 +14,10 @@ bytes per robot per move (every message heard on ``ormstc/*``, bytes as encoded)
 the sonar rays told to peers (``sonar/*``), and wall time; each robot's look steps (LookStep:
 steps aside and back, or into a cell given up from inside and back, made only to sense, which
 the lockstep model does not make), the looks from beside and the cells given up from inside of
-all robots (their "completed" events) and the ratio without look steps.
+all robots (their "completed" events) and the ratio without look steps. Which robot takes a
+contested cell depends on how long claims take against moves, so each run also prints the
+lockstep's coverage time under other such timings (claims deciding after 3 or 6 steps rather
+than 1, messages taking 1-3 steps rather than 1): the spread the same starts give the algorithm itself.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import subprocess
 import sys
 import time
 from collections import Counter
+from typing import Any
 
 import numpy as np
 
@@ -135,11 +139,19 @@ def cell_starts(grid: OccupancyGrid, k: int, seed: int) -> tuple[SubCell, ...]:
                  for r, c in rng.sample(cells, k))
 
 
+# lockstep timings besides the default (claims decided after 1 step, messages take 1), all
+# safe windows (>= 2 x the largest delay - 1): what the same starts give when claims cost more
+# against moves (SimConfig keywords)
+LOCKSTEP_TIMINGS: tuple[dict[str, Any], ...] = (
+    {"claim_wait": 3}, {"claim_wait": 6},
+    {"delay": (1, 3), "claim_wait": 5, "seed": 1}, {"delay": (1, 3), "claim_wait": 5, "seed": 2})
+
+Outcome = tuple[WorldState, Counter[int], Counter[int], float, int, dict[int, int],
+                tuple[dict[int, int], dict[int, int]], tuple[Counter[int], Counter[int]]]
+
+
 async def mission(endpoint: str, world: str, starts: tuple[SubCell, ...], name: str,
-                  sonar: str, scale: float) -> tuple[WorldState, Counter[int], Counter[int], float,
-                                                     int, dict[int, int],
-                                                     tuple[dict[int, int], dict[int, int]],
-                                                     tuple[Counter[int], Counter[int]]]:
+                  sonar: str, scale: float, extra: tuple[str, ...] = ()) -> Outcome:
     counts: Counter[int] = Counter()
     looks: dict[int, int] = {}  # each robot's steps made only to sense (highest LookStep seq)
     beside: dict[int, int] = {}  # each robot's looks from beside (its "completed" event)
@@ -186,7 +198,7 @@ async def mission(endpoint: str, world: str, starts: tuple[SubCell, ...], name: 
         single = ["--sense-mode", "single"] if sonar != "all" else []
         t0 = time.monotonic()
         agent = [sys.executable, "-m", "deploy.cli", "agent", "--algo", "ormstc", "--robots",
-                 str(len(starts)), *conn, "--linger", "0.2", "--dead-after", "3", *single]
+                 str(len(starts)), *conn, "--linger", "0.2", "--dead-after", "3", *single, *extra]
         agents = [subprocess.Popen([*agent, "--id", str(i)], stdout=subprocess.DEVNULL)
                   for i in range(len(starts))]
         codes = [await asyncio.to_thread(a.wait) for a in agents]
@@ -210,9 +222,12 @@ def run_fleet(args: argparse.Namespace) -> None:
             starts = cell_starts(grid, args.robots, args.seed + run)
             mode = SenseMode.SINGLE if args.sonar != "all" else SenseMode.ALL
             lock = simulate(grid, starts, SimConfig(sense_mode=mode))
+            timings = [simulate(grid, starts, SimConfig(sense_mode=mode, **t)).makespan
+                       for t in LOCKSTEP_TIMINGS]
             state, counts, sizes, wall, shared, looks, (beside, given_up), (told, told_bytes) = \
                 asyncio.run(mission(endpoint, args.world, starts, f"{MISSION}-{run}",
-                                    args.sonar, args.time_scale))
+                                    args.sonar, args.time_scale,
+                                    tuple(args.agent_args.split())))
             moves = [t.covered - 1 for t in state.robots]
             visits = world_visits(state)
             ratio = max(moves) / lock.makespan
@@ -227,7 +242,10 @@ def run_fleet(args: argparse.Namespace) -> None:
             per_move.extend(msgs)
             bytes_move.extend(size)
             twice = int((visits > 1).sum())
-            print(f"run {run}: starts {starts}: moves {moves} (lockstep {list(lock.moves)}), "
+            print(f"run {run}: starts {starts}: moves {moves} (lockstep {list(lock.moves)}; "
+                  f"other claim timings {min(timings)}-{max(timings)} against "
+                  f"{lock.makespan}: ratio {max(walks) / max(timings):.3f}-"
+                  f"{max(walks) / min(timings):.3f} without look steps), "
                   f"ratio {ratio:.3f}; look steps {[looks.get(r, 0) for r in range(len(moves))]}"
                   f" ({sum(beside.values())} looks from beside, "
                   f"{sum(given_up.values())} cells given up from inside)"
@@ -262,6 +280,8 @@ def main() -> None:
     fleet.add_argument("--seed", type=int, default=0)
     fleet.add_argument("--sonar", choices=["all", "one-at-a-time"], default="all")
     fleet.add_argument("--time-scale", type=float, default=0.0)
+    fleet.add_argument("--agent-args", default="", metavar="ARGS",
+                       help="more options for every agent, e.g. '--claim-wait 0.1'")
     ech = sub.add_parser("echo")
     ech.add_argument("endpoint")
     args = parser.parse_args()

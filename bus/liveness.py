@@ -13,6 +13,8 @@ declared dead is ignored, a higher incarnation is a new life.
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,6 +26,9 @@ from bus.messages import DeathNotice, DeathReason, Heartbeat, Pose
 DEFAULT_HEARTBEAT_PERIOD = 0.2
 DEFAULT_TIMEOUT = 1.0
 DEFAULT_TOKEN_GRACE = 0.1
+# An early heartbeat (LivelinessService.beat_soon) comes at most this often, as a fraction of
+# the period: a burst of peers' claims costs at most 20 heartbeats per period.
+SOON_FRACTION = 20
 
 
 @dataclass
@@ -276,6 +281,14 @@ class LivelinessService:
         self._clock = clock
         self._last_tick: float | None = None
         self._reminded: dict[int, float] = {}
+        self._soon = asyncio.Event()
+        self._last_beat = -math.inf
+
+    def beat_soon(self) -> None:
+        """Publish the next heartbeat now rather than at its period: a peer waits for what
+        it acknowledges (an ORMSTC claim is decided only once every live peer's heartbeat
+        says it was heard). At most one per period / SOON_FRACTION."""
+        self._soon.set()
 
     def _news(self, notice: DeathNotice) -> None:
         if notice.robot == self.robot:
@@ -365,15 +378,27 @@ class LivelinessService:
             keys.all_alive(mission), lambda k: self._on_token(k, True),
             lambda k: self._on_token(k, False))
         tick = min(self.heartbeats.period, self.detector.token_grace) / 2
-        next_beat = self._clock()
+        period = self.heartbeats.period
+        next_beat = next_tick = self._clock()
         try:
             while True:
                 now = self._clock()
+                if self._soon.is_set():
+                    next_beat = min(next_beat, self._last_beat + period / SOON_FRACTION)
                 if now >= next_beat:
+                    self._soon.clear()
                     self.heartbeats.beat()
-                    next_beat = now + self.heartbeats.period
-                self.tick()
-                await asyncio.sleep(tick)
+                    self._last_beat, next_beat = now, now + period
+                if now >= next_tick:
+                    self.tick()
+                    next_tick = now + tick
+                delay = max(min(next_beat, next_tick) - self._clock(), 0.0)
+                if self._soon.is_set():  # asked for, held back by the rate: no wait on it
+                    await asyncio.sleep(delay)
+                    continue
+                with contextlib.suppress(TimeoutError):
+                    async with asyncio.timeout(delay):
+                        await self._soon.wait()
         finally:
             watch.close()
             heartbeats.close()

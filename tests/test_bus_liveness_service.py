@@ -14,10 +14,11 @@ from collections.abc import AsyncIterator
 import pytest
 from waiting import through_router
 
-from bus.bridge import Bus
+from bus import keys
+from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
-from bus.liveness import LivelinessService
-from bus.messages import DeathNotice
+from bus.liveness import SOON_FRACTION, LivelinessService
+from bus.messages import DeathNotice, Heartbeat
 
 pytestmark = pytest.mark.integration
 _missions = itertools.count()
@@ -120,3 +121,42 @@ async def test_hung_robot_is_declared_dead_and_fenced_when_it_wakes(
         assert len(deaths) == 1 and service.detector.alive() == {}
     finally:
         reap(proc)
+
+
+async def test_an_early_heartbeat_comes_at_once_and_a_burst_of_asks_makes_one(
+        router: str, mission: str) -> None:
+    """beat_soon (an ORMSTC agent acknowledging a peer's claim): the next heartbeat is
+    published now, not at its period (6 s here), and asks that come together make one
+    heartbeat (at most one per period / SOON_FRACTION)."""
+    settings = ConnectionSettings(connect=(router,), mission=mission)
+    beats: list[int] = []
+    async with Bus.connect(settings) as listener, Bus.connect(settings) as bus:
+        listener.subscribe(keys.all_heartbeats(mission), Heartbeat,
+                           lambda _key, hb: beats.append(hb.seq), BoundedFifo(64))
+        await through_router(listener, router)
+        service = LivelinessService(bus, robot=2, incarnation=1, heartbeat_period=6.0,
+                                    timeout=20.0)
+        async with asyncio.TaskGroup() as group:
+            task = group.create_task(service.run())
+            await until(lambda: beats == [1], timeout=3.0)
+            await asyncio.sleep(0.5)  # past the rate's gap (0.3 s) after the first beat
+            for _ in range(5):
+                service.beat_soon()
+            await until(lambda: len(beats) >= 2, timeout=3.0)  # long before the period
+            await asyncio.sleep(1.0)
+            assert beats == [1, 2]
+            # asked again at once: held back to the rate (period / SOON_FRACTION after it)
+            published: list[float] = []
+            beat = service.heartbeats.beat
+
+            def timed_beat() -> None:
+                published.append(time.monotonic())
+                beat()
+
+            service.heartbeats.beat = timed_beat  # type: ignore[method-assign]
+            for n in (1, 2):
+                service.beat_soon()
+                await until(lambda: len(published) == n, timeout=3.0)  # noqa: B023
+            await until(lambda: len(beats) == 4, timeout=3.0)
+            assert published[1] - published[0] >= 6.0 / SOON_FRACTION - 0.01
+            task.cancel()

@@ -407,7 +407,8 @@ async def test_pillars_smaller_than_a_cell(bus: Bus, router: str, tmp_path: Path
 
 @pytest.mark.parametrize(("argv", "needle"), [
     (["--id", "4", "--robots", "4"], "--id 4 is not below --robots 4"),
-    (["--id", "0", "--robots", "2", "--claim-wait", "0"], "expected a number of seconds > 0"),
+    (["--id", "0", "--robots", "2", "--claim-wait", "-1"], "expected a finite number >= 0"),
+    (["--id", "0", "--robots", "2", "--watch-interval", "0"], "expected a number of seconds > 0"),
 ])
 def test_user_mistakes_give_one_line(argv: list[str], needle: str) -> None:
     done = subprocess.run(mstc("agent", "--algo", "ormstc", *argv), capture_output=True,

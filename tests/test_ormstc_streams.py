@@ -288,8 +288,12 @@ def _schedules(max_delay: int, repairs: tuple[int, ...]) -> itertools.product[tu
 
 
 def _decisions(max_delay: int, rule: Rule, repairs: tuple[int, ...],
-               every_heartbeat: bool = False) -> Iterator[dict[int, tuple[int, bool]]]:
-    wait, n = 2 * max_delay - 1, len(_KEYS)
+               every_heartbeat: bool = False,
+               wait: int | None = None) -> Iterator[dict[int, tuple[int, bool]]]:
+    """Every schedule's decisions; ``wait`` is the window (default 2D - 1, the one that is
+    safe without loss)."""
+    n = len(_KEYS)
+    wait = 2 * max_delay - 1 if wait is None else wait
     for case in _schedules(max_delay, repairs):
         t1, ds, rs, hb = case[0], case[1:1 + n], case[1 + n:1 + 2 * n], case[1 + 2 * n:]
         yield _play((0, t1), dict(zip(_KEYS, ds, strict=True)),
@@ -297,9 +301,10 @@ def _decisions(max_delay: int, rule: Rule, repairs: tuple[int, ...],
                     every_heartbeat)
 
 
-def _double_wins(max_delay: int, rule: Rule, repairs: tuple[int, ...]) -> int:
+def _double_wins(max_delay: int, rule: Rule, repairs: tuple[int, ...],
+                 wait: int | None = None) -> int:
     return sum(sum(won for _, won in decided.values()) > 1
-               for decided in _decisions(max_delay, rule, repairs))
+               for decided in _decisions(max_delay, rule, repairs, wait=wait))
 
 
 def test_the_first_heartbeat_that_took_the_claim_decides_as_every_heartbeat_does() -> None:
@@ -316,6 +321,17 @@ def test_with_loss_the_acknowledgement_rule_never_gives_two_owners() -> None:
 @pytest.mark.slow
 def test_with_loss_the_acknowledgement_rule_never_gives_two_owners_for_d_2() -> None:
     assert _double_wins(2, "acks", (0, 5)) == 0
+
+
+@pytest.mark.parametrize("max_delay", [1, pytest.param(2, marks=pytest.mark.slow)])
+def test_the_acknowledgements_need_no_window(max_delay: int) -> None:
+    """The agents' default (agent/ormstc/options.py): a claim decided as soon as every peer
+    acknowledged it, with no window, never has two owners; with no window and no
+    acknowledgement (deciding at once) some schedule does, so the acknowledgements are what
+    make it safe."""
+    repairs = (0, 1, 4) if max_delay == 1 else (0, 5)
+    assert _double_wins(max_delay, "acks", repairs, wait=0) == 0
+    assert _double_wins(max_delay, "window", (0,), wait=0) > 0
 
 
 def test_with_loss_a_window_or_a_horizon_after_it_can_give_two_owners() -> None:

@@ -61,6 +61,7 @@ from planner.ormstc.types import (
     AliveResult,
     Broadcast,
     Cell,
+    ClaimMsg,
     DeadRobotMsg,
     Event,
     IsAlive,
@@ -138,10 +139,14 @@ class OrmstcAgent(BodyAgent):
         self.news.set()
 
     def _on_ormstc(self, key: str, wire: OrmstcWire) -> None:
+        claims = False
         for item, msg in self.inbound.accept(key, wire, self.now()):
             self.book.heard(item)
             self._wake(PeerMessage(item.robot, msg))
+            claims = claims or msg.__class__ is ClaimMsg
         self._ack(wire.robot)
+        if claims:  # the claimant decides once our heartbeat says we heard it: say so now
+            self.liveness.beat_soon()
 
     def _ack(self, robot: int, upto: float | None = None) -> None:
         """Tell the machine how many of its broadcasts a peer acknowledged, counting only

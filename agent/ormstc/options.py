@@ -2,9 +2,9 @@
 here, so option mistakes are reported before the bus is loaded).
 
 Time options are wall-clock seconds: the machine is ticked with the agent's monotonic clock,
-because the one bound that matters for safety — a claim must wait longer than two one-way
-message delays — is a property of the network and the processes, not of simulated time
-(and with ``simhw --time-scale 0`` there is no shared simulated clock at all).
+because what they wait for (peers' messages and acknowledgements, a body in the way) takes
+the network's and the processes' time, not simulated time (and with ``simhw --time-scale 0``
+there is no shared simulated clock at all).
 """
 
 from __future__ import annotations
@@ -13,14 +13,16 @@ import argparse
 from dataclasses import dataclass
 
 from agent.core.config import AgentConfig
-from bus.argtypes import seconds
+from bus.argtypes import non_negative, seconds
 from planner.ormstc.types import MachineConfig, Priority, SenseMode
 
-# Claim window (s): it must exceed twice the largest one-way delay of an ORMSTC message.
-# Measured claim round trip between two processes through a local router on the shared 2-core
-# machine (benchmarks/bench_ormstc_fleet.py latency): median 1.1-1.5 ms, p99 19-35 ms, worst
-# 117-197 ms at load averages 10-27; so a one-way delay up to ~120 ms, doubled, plus slack.
-DEFAULT_CLAIM_WAIT = 0.25
+# Claim window (s): how long a claim waits before it may be decided. The agents decide a claim
+# only once every live peer has acknowledged it (MachineConfig.await_acks), which is safe
+# whatever the delays (docs/ormstc.md, "Claims under message loss"), and a peer acknowledges a
+# claim at once (an early heartbeat), so no window is needed: a claim costs a round trip. The
+# old default, 0.25 s, was twice the worst one-way delay measured on a loaded host
+# (benchmarks/bench_ormstc_fleet.py latency: median 1.1-1.5 ms, worst 117-197 ms at load 10-27).
+DEFAULT_CLAIM_WAIT = 0.0
 DEFAULT_WATCH_INTERVAL = 0.5
 DEFAULT_BUMP_BACKOFF = 0.05
 # simhw's body at time scale 1 takes 1.93 s for a step and 2.07 s for a quarter turn, so a body
@@ -52,10 +54,11 @@ class OrmstcOptions:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options only ``--algo ormstc`` reads (it reads no map: only simhw has one)."""
     group = parser.add_argument_group("ORMSTC (--algo ormstc)")
-    group.add_argument("--claim-wait", type=seconds, default=DEFAULT_CLAIM_WAIT,
+    group.add_argument("--claim-wait", type=non_negative, default=DEFAULT_CLAIM_WAIT,
                        metavar="SECONDS",
-                       help="how long a claim waits for rival claims; must exceed twice the "
-                            "largest one-way message delay (default %(default)s)")
+                       help="how long a claim waits before it is decided, besides every live "
+                            "peer's acknowledgement, which alone makes it safe "
+                            "(default %(default)s)")
     group.add_argument("--sense-mode", choices=[m.value for m in SenseMode],
                        default=SenseMode.ALL.value,
                        help="'single' senses one neighbouring cell per sonar command (use "

@@ -328,7 +328,9 @@ class OrmstcMachine:
             self.ack_waits += 1
             while not know.acked_by_all(index):
                 know.awaiting, know.changed = True, False
-                yield (_WAKE, self.now + self.config.claim_wait)
+                # an acknowledgement wakes the machine; the time is only a fallback (an
+                # agent's window may be 0: the acknowledgements alone make a claim safe)
+                yield (_WAKE, self.now + (self.config.claim_wait or self.config.watch_interval))
             know.awaiting = False
         return None
 
