@@ -17,7 +17,8 @@ the lockstep model does not make), the looks from beside and the cells given up 
 all robots (their "completed" events) and the ratio without look steps. Which robot takes a
 contested cell depends on how long claims take against moves, so each run also prints the
 lockstep's coverage time under other such timings (claims deciding after 3 or 6 steps rather
-than 1, messages taking 1-3 steps rather than 1): the spread the same starts give the algorithm itself.
+than 1, messages taking 1-3 steps rather than 1): the spread the same starts give the
+algorithm itself.
 """
 
 from __future__ import annotations

@@ -301,17 +301,19 @@ async def test_four_robots_cover_everything_once(bus: Bus, router: str, room: Pa
 
 @pytest.mark.integration
 @pytest.mark.slow
-async def test_lost_claims_and_edges_cause_no_double_work(bus: Bus, router: str,
-                                                          room: Path) -> None:
+@pytest.mark.parametrize("window", [(), ("--claim-wait", "0")], ids=["default", "no-window"])
+async def test_lost_claims_and_edges_cause_no_double_work(bus: Bus, router: str, room: Path,
+                                                          window: tuple[str, ...]) -> None:
     """30 % of the ORMSTC messages dropped at the publisher, 10 % more lost per receiver,
     some heartbeats lost, others duplicated and reordered: every lost claim or edge is said
-    again (a peer's heartbeat shows it lacking) and no claim is decided before every peer's
-    messages up to its window are in, so no cell gets two owners (docs/ormstc.md, "Claims
-    under message loss")."""
+    again (a peer's heartbeat shows it lacking) and no claim is decided before every peer
+    has acknowledged it, so no cell gets two owners (docs/ormstc.md, "Claims under message
+    loss") — with the default window and with none (the acknowledgements alone)."""
     starts = STARTS[:3]
     fleet = await make_fleet(bus, router, room, starts)
     try:
-        fleet.start(faults="seed=3;ormstc.drop=0.3;ormstc.lose=0.1;ormstc.dup=0.1;"
+        fleet.start(agent_args=window,
+                    faults="seed=3;ormstc.drop=0.3;ormstc.lose=0.1;ormstc.dup=0.1;"
                            "ormstc.reorder=0.1;hb.drop=0.1;window=0.1")
         await run_to_end(bus, fleet, list(range(len(starts))))
         state = await world_state(bus)

@@ -19,10 +19,14 @@ from planner.ormstc.types import MachineConfig, Priority, SenseMode
 # Claim window (s): how long a claim waits before it may be decided. The agents decide a claim
 # only once every live peer has acknowledged it (MachineConfig.await_acks), which is safe
 # whatever the delays (docs/ormstc.md, "Claims under message loss"), and a peer acknowledges a
-# claim at once (an early heartbeat), so no window is needed: a claim costs a round trip. The
-# old default, 0.25 s, was twice the worst one-way delay measured on a loaded host
-# (benchmarks/bench_ormstc_fleet.py latency: median 1.1-1.5 ms, worst 117-197 ms at load 10-27).
-DEFAULT_CLAIM_WAIT = 0.0
+# claim at once (an early heartbeat), so 0 is safe too and a claim then costs a round trip.
+# The window stays because it evens out the robots' pace: with 0, at simhw time scale 0 a
+# robot's speed is its share of the CPU, and the split of cells drifted from the lockstep
+# model's (bench_ormstc_fleet.py: mean ratio 0.98 -> 1.03-1.08 over the builtin worlds;
+# 1.01 -> 1.05 at mstc up's time scale 40: docs/ormstc.md "Claims at the speed of a round
+# trip"). 0.25 s was chosen as twice the worst one-way delay measured on a loaded host
+# (median 1.1-1.5 ms, worst 117-197 ms at load 10-27).
+DEFAULT_CLAIM_WAIT = 0.25
 DEFAULT_WATCH_INTERVAL = 0.5
 DEFAULT_BUMP_BACKOFF = 0.05
 # simhw's body at time scale 1 takes 1.93 s for a step and 2.07 s for a quarter turn, so a body
@@ -57,8 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--claim-wait", type=non_negative, default=DEFAULT_CLAIM_WAIT,
                        metavar="SECONDS",
                        help="how long a claim waits before it is decided, besides every live "
-                            "peer's acknowledgement, which alone makes it safe "
-                            "(default %(default)s)")
+                            "peer's acknowledgement, which alone makes it safe; 0 makes a claim "
+                            "cost a round trip (default %(default)s)")
     group.add_argument("--sense-mode", choices=[m.value for m in SenseMode],
                        default=SenseMode.ALL.value,
                        help="'single' senses one neighbouring cell per sonar command (use "
