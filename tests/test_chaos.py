@@ -15,8 +15,9 @@ from agent.core.config import DEFAULT_BOOT_TIMEOUT
 from deploy.chaos.campaign import rerun_command, table
 from deploy.chaos.inject import partition_problem
 from deploy.chaos.schedule import SCENARIOS, Campaign, Fault, Trial, make_trial
-from deploy.chaos.trial import Outcome, judge, run_trial
+from deploy.chaos.trial import TRIAL_TIMEOUT_S, Outcome, judge, run_trial, trial_timeout
 from deploy.cli import build_parser
+from planner.maps import BUILTIN_WORLDS, resolve_world
 
 
 def test_trials_are_a_function_of_the_campaign_and_the_index() -> None:
@@ -28,6 +29,19 @@ def test_trials_are_a_function_of_the_campaign_and_the_index() -> None:
         victims = {f.robot for f in trial.faults if f.kind == "kill"}
         assert len(victims) < max(trial.robots, 2), "one robot at least is left"
     assert make_trial(Campaign(seed=6), 1) != make_trial(campaign, 1)
+
+
+@pytest.mark.parametrize("world", sorted(BUILTIN_WORLDS))
+def test_a_trial_s_limit_leaves_a_lone_survivor_time_to_finish(world: str) -> None:
+    """A trial whose team is killed down to one robot is not lost for the campaign's clock:
+    one ORMSTC survivor covered about 8 sub-cells/s (chaos seed 4247, grid30x20, where the
+    fixed 120 s cut it off at 36 %), so the limit allows it the whole world, and never less
+    than the fixed limit."""
+    trial = Trial(0, 1, world, "ormstc", 4, "kills", (), "")
+    free = int(resolve_world(world).free.sum())
+    assert trial_timeout(trial) >= max(TRIAL_TIMEOUT_S, free / 8)
+    assert judge(trial, Path("/nonexistent"), None, 1.0, []).detail == \
+        f"mstc up did not end in {trial_timeout(trial):g} s"
 
 
 def test_a_default_campaign_draws_every_grid_fleet_algorithm_the_cli_offers() -> None:

@@ -30,8 +30,19 @@ from bus.faults import ENV as FAULTS_ENV
 from deploy.chaos.inject import Injector, RouterProcess
 from deploy.chaos.schedule import Trial
 from deploy.fleet import mstc_argv
+from planner.maps import resolve_world
 
 TRIAL_TIMEOUT_S = 120.0
+# A trial may last longer on a large world: one survivor covering it alone (most of its team
+# killed) at ORMSTC's default claim window covered about 8 sub-cells/s (chaos seed 4247,
+# grid30x20, docs/chaos.md), so twice that time per sub-cell.
+LONE_ROBOT_S_PER_SUB_CELL = 0.25
+
+
+def trial_timeout(trial: Trial) -> float:
+    """Seconds a trial's ``mstc up`` may run before the mission counts as lost."""
+    free = int(resolve_world(trial.world).free.sum())
+    return max(TRIAL_TIMEOUT_S, LONE_ROBOT_S_PER_SUB_CELL * free)
 # Report invariants that say two robots did the same work (not a gap in the data).
 DOUBLE_WORK = ("no sub-cell covered twice", "no cell owned by two", "at most twice")
 
@@ -103,7 +114,7 @@ async def run_trial(trial: Trial, workdir: Path) -> Outcome:
                                   stderr=subprocess.STDOUT, env=env, start_new_session=True)
         t0 = time.monotonic()
         try:
-            async with asyncio.timeout(TRIAL_TIMEOUT_S), asyncio.TaskGroup() as group:
+            async with asyncio.timeout(trial_timeout(trial)), asyncio.TaskGroup() as group:
                 for fault in trial.faults:
                     group.create_task(_at(t0 + (0.0 if fault.mark else fault.at), injector,
                                           fault))
@@ -144,7 +155,8 @@ def judge(trial: Trial, workdir: Path, code: int | None, wall: float,
     outcome = Outcome(trial, "ok", "", round(wall, 2), injected=injected, exit_code=code)
     summary_path = workdir / "run" / "summary.json"
     if code is None:
-        outcome.verdict, outcome.detail = "lost", f"mstc up did not end in {TRIAL_TIMEOUT_S:g} s"
+        outcome.verdict = "lost"
+        outcome.detail = f"mstc up did not end in {trial_timeout(trial):g} s"
         return outcome
     try:
         summary = json.loads(summary_path.read_text())
