@@ -37,14 +37,14 @@ TRIAL_TIMEOUT_S = 120.0
 # killed) at ORMSTC's default claim window covered about 8 sub-cells/s (chaos seed 4247,
 # grid30x20, docs/chaos.md), so twice that time per sub-cell.
 LONE_ROBOT_S_PER_SUB_CELL = 0.25
+# Report invariants that say two robots did the same work (not a gap in the data).
+DOUBLE_WORK = ("no sub-cell covered twice", "no cell owned by two", "at most twice")
 
 
 def trial_timeout(trial: Trial) -> float:
     """Seconds a trial's ``mstc up`` may run before the mission counts as lost."""
     free = int(resolve_world(trial.world).free.sum())
     return max(TRIAL_TIMEOUT_S, LONE_ROBOT_S_PER_SUB_CELL * free)
-# Report invariants that say two robots did the same work (not a gap in the data).
-DOUBLE_WORK = ("no sub-cell covered twice", "no cell owned by two", "at most twice")
 
 
 @dataclass
