@@ -208,6 +208,10 @@ def ormstc_withdraw(mission: str, robot: int) -> str:
     return build("ormstc/withdraw", mission, robot)
 
 
+def ormstc_retract(mission: str, robot: int) -> str:
+    return build("ormstc/retract", mission, robot)
+
+
 def all_ormstc(mission: str, what: str = "*") -> str:
     """ORMSTC keys of all robots: ``what`` is one of the ORMSTC kinds or "*"."""
     if what != "*" and what not in _ORMSTC:

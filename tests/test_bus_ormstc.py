@@ -25,6 +25,7 @@ from planner.ormstc.types import (
     ConnectionMsg,
     DeadRobotMsg,
     Message,
+    RetractionMsg,
     StartMsg,
     TreeEdgeMsg,
     WithdrawalMsg,
@@ -61,7 +62,7 @@ def test_each_kind_has_its_own_key_and_one_shared_qos() -> None:
     samples = [to_wire(m, 1, 1) for m in (
         StartMsg(3, (0, 1)), ClaimMsg(3, (0, 1), 2), TreeEdgeMsg(3, (0, 0), (0, 1)),
         ConnectionMsg(3, 1, (0, 0), (0, 1)), DeadRobotMsg(3, 1), CompletionMsg(3, 4),
-        WithdrawalMsg(3, 1))]
+        WithdrawalMsg(3, 1), RetractionMsg(3, (0, 0), (0, 1)))]
     assert {type(s) for s in samples} == set(ORMSTC_MESSAGES)
     built = {key_for("m", s) for s in samples}
     assert len(built) == len(samples)
@@ -86,7 +87,8 @@ def test_strict_decoding_rejects_each_broken_field(cls: type[Any]) -> None:
         "OrmstcTreeEdge": TreeEdgeMsg(1, (2, 2), (2, 3)),
         "OrmstcConnection": ConnectionMsg(1, 0, (2, 2), (2, 3)),
         "OrmstcDeadRobot": DeadRobotMsg(1, 0), "OrmstcCompletion": CompletionMsg(1, 9),
-        "OrmstcWithdrawal": WithdrawalMsg(1, 0)}
+        "OrmstcWithdrawal": WithdrawalMsg(1, 0),
+        "OrmstcRetraction": RetractionMsg(1, (2, 2), (2, 3))}
     wire = to_wire(examples[cls.__name__], 2, 7)
     assert type(wire) is cls
     raw = _raw(wire)

@@ -33,6 +33,7 @@ from bus.messages import (
     OrmstcCompletion,
     OrmstcConnection,
     OrmstcDeadRobot,
+    OrmstcRetraction,
     OrmstcStart,
     OrmstcTreeEdge,
     OrmstcWithdrawal,
@@ -89,6 +90,7 @@ EXAMPLES: dict[type[Any], Any] = {ex.__class__: ex for ex in (
     OrmstcDeadRobot(3, 2, 5, 1),
     OrmstcCompletion(3, 2, 6, 9),
     OrmstcWithdrawal(3, 2, 7, 1),
+    OrmstcRetraction(3, 2, 8, (0, 0), (0, 1)),
     TreeReport(3, 2, 5, 7, 4, ((1, 2),), (1,)),
     RadioStats(1, 2, 3, 4, 5, 6),
 )}

@@ -205,6 +205,29 @@ def test_typed_ormstc_messages_claims_conflict_and_completion() -> None:
     assert not model.invalid
 
 
+def test_a_retracted_ormstc_edge_is_not_drawn_though_the_robot_crossed_there() -> None:
+    """A robot grows into a cell on its near half, steps in, finds an obstacle and steps
+    back out (planner/ormstc/inside.py): it crossed the border twice, but no tree edge runs
+    there once it takes the edge back."""
+    from bus.messages import OrmstcRetraction, OrmstcTreeEdge
+
+    model = FleetModel()
+    model.apply(Record(0.0, keys.ormstc_tree(M, 0), OrmstcTreeEdge(0, 1, 1, (0, 0), (0, 1))))
+    model.apply(Record(0.1, keys.ormstc_tree(M, 0), OrmstcTreeEdge(0, 1, 2, (0, 0), (1, 0))))
+    walk = [(0, 1), (0, 2), (0, 1)]  # from cell (0, 0) into cell (0, 1) and back
+    for t, sub in enumerate(walk[:2]):
+        model.apply(Record(0.2 + t / 10, keys.sim_cover(M, 0), CoverEvent(0, sub, t, 1)))
+    assert set(model.edges) == {((0, 0), (0, 1)), ((0, 0), (1, 0))}
+    model.apply(Record(0.5, keys.ormstc_retract(M, 0),
+                       OrmstcRetraction(0, 1, 3, (0, 0), (0, 1))))
+    model.apply(Record(0.6, keys.sim_cover(M, 0), CoverEvent(0, walk[2], 2.0, 2)))
+    assert model.edges == {((0, 0), (1, 0)): 0}
+    assert model.claims.owner == {(1, 0): 0}
+    assert [e.kind for e in model.events] == ["tree_edge_retracted"]
+    assert "gave cell (0, 1) up" in model.events[0].text
+    assert not model.invalid
+
+
 def test_the_monitor_needs_nothing_but_the_wire() -> None:
     """No module of the monitor, replay or report imports agent/ or simhw/ code."""
     import subprocess
@@ -221,24 +244,35 @@ def test_the_monitor_needs_nothing_but_the_wire() -> None:
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 2), st.booleans(), st.integers(0, 3),
+@given(st.lists(st.tuples(st.integers(0, 2), st.integers(0, 2), st.integers(0, 3),
                           st.integers(0, 3)), max_size=40), st.floats(0.0, 1.0))
 def test_ormstc_late_and_midway_joiners_learn_trees_and_claims_from_state_replies(
-        ops: list[tuple[int, bool, int, int]], cut_at: float) -> None:
-    """Any stream of claims and tree edges (at most one owner per cell, as ORMSTC keeps):
-    a monitor fed the agents' state replies (built by the agents' own TreeBook) at some
-    point, then the rest of the stream, ends with the same edges, owners and open claims as
-    one that heard every message. Oracle: the full watch."""
+        ops: list[tuple[int, int, int, int]], cut_at: float) -> None:
+    """Any stream of claims, tree edges and retractions (at most one owner per cell, as
+    ORMSTC keeps; nobody grows into a cell given up): a monitor fed the agents' state
+    replies (built by the agents' own TreeBook) at some point, then the rest of the stream,
+    ends with the same edges, owners and open claims as one that heard every message.
+    Oracle: the full watch, and the edges built and not taken back."""
     from agent.ormstc.wire import TreeBook
-    from bus.messages import AgentState, OrmstcClaim, OrmstcTreeEdge
+    from bus.messages import AgentState, OrmstcClaim, OrmstcRetraction, OrmstcTreeEdge
 
     owned: dict[tuple[int, int], int] = {}
+    given_up: set[tuple[int, int]] = set()
     stream: list[Record] = []
-    for seq, (robot, edge, r, c) in enumerate(ops, start=1):
-        if edge and (r, c) not in owned:
+    msg: OrmstcClaim | OrmstcTreeEdge | OrmstcRetraction
+    for seq, (robot, what, r, c) in enumerate(ops, start=1):
+        mine = [cell for cell, owner in owned.items() if owner == robot]
+        if what == 2 and mine:  # the robot gives up the last cell it grew into
+            del owned[mine[-1]]
+            given_up.add(mine[-1])
+            (r, c) = mine[-1]
+            msg = OrmstcRetraction(robot, 1, seq, (r, c + 1), (r, c))
+            key = keys.ormstc_retract(M, robot)
+        elif (r, c) in given_up:
+            continue
+        elif what == 1 and (r, c) not in owned:
             owned[(r, c)] = robot
-            msg: OrmstcClaim | OrmstcTreeEdge = OrmstcTreeEdge(robot, 1, seq, (r, c + 1),
-                                                               (r, c))
+            msg = OrmstcTreeEdge(robot, 1, seq, (r, c + 1), (r, c))
             key = keys.ormstc_tree(M, robot)
         else:
             msg, key = OrmstcClaim(robot, 1, seq, (r, c), 0), keys.ormstc_claim(M, robot)
@@ -256,7 +290,9 @@ def test_ormstc_late_and_midway_joiners_learn_trees_and_claims_from_state_replie
     def open_claims(model: FleetModel) -> dict[tuple[int, int], set[int]]:
         return {cell: set(who) for cell, who in model.claims.open.items() if who}
 
-    assert late.edges == full.edges
+    assert late.edges == full.edges == {
+        (min(child, (child[0], child[1] + 1)), max(child, (child[0], child[1] + 1))): robot
+        for child, robot in owned.items()}
     assert late.claims.owner == full.claims.owner == owned
     assert open_claims(late) == open_claims(full)
     assert late.picture().edges == full.picture().edges

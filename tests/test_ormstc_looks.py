@@ -33,23 +33,29 @@ from agent.ormstc.sensing import (
     shows_news,
     sub_cells,
 )
+from agent.ormstc.wire import from_wire, key_for, to_wire
+from bus import keys
 from planner.grid import coarsen
 from planner.maps.worlds import builtin_world
 from planner.ormstc.knowledge import Knowledge
 from planner.ormstc.machine import OrmstcMachine
 from planner.ormstc.types import (
     AliveResult,
+    Broadcast,
     CellStatus,
     Event,
     IsAlive,
     MachineConfig,
+    Message,
     Move,
     MoveResult,
     Priority,
+    RetractionMsg,
     Sense,
     SenseMode,
     SubCell,
     Tick,
+    TreeEdgeMsg,
 )
 from simhw.sensors import sonar_range
 from simhw.types import Heading
@@ -97,6 +103,7 @@ class Alone:
     sonar: SonarMap
     look_steps: list[SubCell]  # the sub-cells of the published look steps
     given_up: int  # cells the machine grew into, entered and gave up (inside.py)
+    said: list[Message]  # what the machine broadcast, in order
 
 
 async def cover_alone(blocked: np.ndarray, start: SubCell, glances: bool,
@@ -113,6 +120,7 @@ async def cover_alone(blocked: np.ndarray, start: SubCell, glances: bool,
     published: list[SubCell] = []
     sonar, walk, now = SonarMap(), {start: 1}, 0.0
     looker = Looker(body, sonar, lambda seq, cell: published.append(cell))
+    said: list[Message] = []
     answer: Event | None = None
     while not machine.done_sent:
         now += 1.0
@@ -145,10 +153,12 @@ async def cover_alone(blocked: np.ndarray, start: SubCell, glances: bool,
                         await glance(body, sonar, NOBODY)
             elif isinstance(request, IsAlive):
                 answer = AliveResult(request.robot, True)
+            elif isinstance(request, Broadcast):
+                said.append(request.message)
         assert now < 200_000, "the robot never finished"
     assert looker.marked.steps == sonar.steps == len(published)
     assert looker.home is None and not looker.marked.held
-    return Alone(walk, body, sonar, published, machine.given_up)
+    return Alone(walk, body, sonar, published, machine.given_up, said)
 
 
 @settings(max_examples=25, deadline=None)
@@ -236,6 +246,16 @@ def test_a_cell_blocked_in_its_far_half_is_given_up() -> None:
     assert alone.given_up >= 1 and (2, 0) in alone.look_steps
     assert set(alone.walk) == lockstep_covered(blocked, (0, 0), SenseMode.ALL)
     assert not {(2, 0), (2, 1), (3, 0), (3, 1)} & set(alone.walk)
+    # the edge into (1, 0) went out, and then its retraction, on the retraction's own key
+    edges = [m for m in alone.said if isinstance(m, TreeEdgeMsg)]
+    taken_back = [m for m in alone.said if isinstance(m, RetractionMsg)]
+    assert [(m.parent, m.child) for m in taken_back] == [((0, 0), (1, 0))]
+    assert alone.said.index(TreeEdgeMsg(0, (0, 0), (1, 0))) < alone.said.index(taken_back[0])
+    assert all(e.child != (1, 0) for e in edges[edges.index(TreeEdgeMsg(0, (0, 0), (1, 0)))
+                                                + 1:])
+    wire = to_wire(taken_back[0], 1, 9)
+    assert keys.kind_of(key_for("m", wire)) == "ormstc/retract"
+    assert from_wire(wire) == taken_back[0]
 
 
 def test_looks_from_inside_spare_look_steps_on_builtin_worlds() -> None:

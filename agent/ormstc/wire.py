@@ -31,6 +31,7 @@ from bus.messages import (
     OrmstcCompletion,
     OrmstcConnection,
     OrmstcDeadRobot,
+    OrmstcRetraction,
     OrmstcStart,
     OrmstcTreeEdge,
     OrmstcWire,
@@ -43,6 +44,7 @@ from planner.ormstc.types import (
     ConnectionMsg,
     DeadRobotMsg,
     Message,
+    RetractionMsg,
     StartMsg,
     TreeEdgeMsg,
     WithdrawalMsg,
@@ -54,7 +56,7 @@ _KEY: dict[type, Callable[[str, int], str]] = {
     OrmstcStart: keys.ormstc_start, OrmstcClaim: keys.ormstc_claim,
     OrmstcTreeEdge: keys.ormstc_tree, OrmstcConnection: keys.ormstc_conn,
     OrmstcDeadRobot: keys.ormstc_dead, OrmstcCompletion: keys.ormstc_done,
-    OrmstcWithdrawal: keys.ormstc_withdraw,
+    OrmstcWithdrawal: keys.ormstc_withdraw, OrmstcRetraction: keys.ormstc_retract,
 }
 
 
@@ -73,6 +75,8 @@ def to_wire(msg: Message, incarnation: int, seq: int) -> OrmstcWire:
         return OrmstcDeadRobot(r, i, s, msg.dead)
     if isinstance(msg, CompletionMsg):
         return OrmstcCompletion(r, i, s, msg.cells)
+    if isinstance(msg, RetractionMsg):
+        return OrmstcRetraction(r, i, s, msg.parent, msg.child)
     return OrmstcWithdrawal(r, i, s, msg.peer)
 
 
@@ -90,6 +94,8 @@ def from_wire(wire: OrmstcWire) -> Message:
         return DeadRobotMsg(wire.robot, wire.dead)
     if isinstance(wire, OrmstcCompletion):
         return CompletionMsg(wire.robot, wire.cells)
+    if isinstance(wire, OrmstcRetraction):
+        return RetractionMsg(wire.robot, wire.parent, wire.child)
     return WithdrawalMsg(wire.robot, wire.peer)
 
 
@@ -168,7 +174,7 @@ class Inbound:
 
 
 def _fact(wire: OrmstcWire) -> tuple[object, ...] | None:
-    """What a start, tree edge or freed robot says for good (claims, completions and
+    """What a start, tree edge, retraction or freed robot says for good (claims, completions and
     withdrawals are not facts: they may be said again and mean something new)."""
     if isinstance(wire, OrmstcStart):
         return (wire.robot, wire.incarnation, "start", wire.sub)
@@ -176,6 +182,8 @@ def _fact(wire: OrmstcWire) -> tuple[object, ...] | None:
         return (wire.robot, wire.incarnation, "tree", wire.parent, wire.child)
     if isinstance(wire, OrmstcDeadRobot):
         return (wire.robot, wire.incarnation, "dead", wire.dead)
+    if isinstance(wire, OrmstcRetraction):
+        return (wire.robot, wire.incarnation, "retract", wire.parent, wire.child)
     return None
 
 
@@ -234,6 +242,8 @@ class TreeBook:
         elif isinstance(wire, OrmstcTreeEdge):
             self.tree.append((wire.parent, wire.child))
             self.claims.pop(wire.child, None)
+        elif isinstance(wire, OrmstcRetraction) and (wire.parent, wire.child) in self.tree:
+            self.tree.remove((wire.parent, wire.child))
 
     def heard(self, wire: OrmstcWire) -> None:
         """A peer's tree edge settles our claim on its child cell (we lost it); a dead

@@ -95,12 +95,25 @@ class OrmstcWithdrawal:
     peer: int
 
 
+@dataclass(frozen=True)
+class OrmstcRetraction:
+    """Robot takes back its tree edge ``parent`` -> ``child``: it found an obstacle or a dead
+    robot's body in ``child`` from inside. For monitors: peers keep the cell as the robot's."""
+
+    KIND: ClassVar[str] = "ormstc_retract"
+    robot: int
+    incarnation: int
+    seq: int
+    parent: Cell
+    child: Cell
+
+
 OrmstcWire = (OrmstcStart | OrmstcClaim | OrmstcTreeEdge | OrmstcConnection | OrmstcDeadRobot
-              | OrmstcCompletion | OrmstcWithdrawal)
+              | OrmstcCompletion | OrmstcWithdrawal | OrmstcRetraction)
 
 ORMSTC_MESSAGES: tuple[type[Any], ...] = (
     OrmstcStart, OrmstcClaim, OrmstcTreeEdge, OrmstcConnection, OrmstcDeadRobot,
-    OrmstcCompletion, OrmstcWithdrawal)
+    OrmstcCompletion, OrmstcWithdrawal, OrmstcRetraction)
 
 
 @dataclass(frozen=True)

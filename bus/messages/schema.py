@@ -29,6 +29,7 @@ from bus.messages.ormstc import (
     OrmstcCompletion,
     OrmstcConnection,
     OrmstcDeadRobot,
+    OrmstcRetraction,
     OrmstcStart,
     OrmstcTreeEdge,
     OrmstcWithdrawal,
@@ -196,6 +197,9 @@ KINDS: tuple[Kind, ...] = (
          C.CRITICAL),
     Kind(OrmstcWithdrawal, (family("ormstc/withdraw/{robot}", access=BY_OWN, cache=EVENT_CACHE),),
          C.CRITICAL),
+    # a new kind (no generation bump: docs/protocol.md, "Versioning rule")
+    Kind(OrmstcRetraction, (family("ormstc/retract/{robot}", access=BY_OWN, cache=EVENT_CACHE),),
+         C.CRITICAL, since=5),
     # what a robot's sonar showed free, for its peers' sensing: outside ormstc/* (not the
     # machine's ordered stream), dropped rather than delaying claims under congestion
     Kind(SonarRays, (family("sonar/{robot}", access=BY_OWN),), C.STREAM, since=5),

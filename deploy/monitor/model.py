@@ -348,7 +348,9 @@ class FleetModel:
         parsed = self.roster.parse(record.key)
         if parsed is not None and parsed.kind.startswith("ormstc/"):
             for event in self.claims.apply(record.t, parsed.kind, fields):
-                if event.edge is not None and event.robot is not None:
+                if event.kind == "tree_edge_retracted" and event.edge is not None:
+                    self.world.retracted_edge(event.edge)
+                elif event.edge is not None and event.robot is not None:
                     self.world.built_edge(event.edge, event.robot)
                 if event.kind in ("completed", "withdrawn") and event.robot is not None:
                     self.roster.robot(event.robot).done = event.kind == "completed"

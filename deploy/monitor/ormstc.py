@@ -2,8 +2,9 @@
 
 Read by field name (``robot``, ``cell``, ``parent``, ``child``, as in planner.ormstc.types),
 so that the monitor follows ORMSTC messages whether or not this process has their bus types:
-a claim says "robot r wants cell c", a tree edge "parent -> child, child is mine now". Two
-robots claiming one cell is a conflict; the tree edge that follows names the winner.
+a claim says "robot r wants cell c", a tree edge "parent -> child, child is mine now", a
+retraction "no edge into child after all: it is blocked". Two robots claiming one cell is a
+conflict; the tree edge that follows names the winner.
 """
 
 from __future__ import annotations
@@ -55,6 +56,10 @@ class ClaimBook:
             parent, child = _cell(fields.get("parent")), _cell(fields.get("child"))
             return [] if parent is None or child is None else \
                 self._edge(t, robot, parent, child)
+        if kind == "ormstc/retract":
+            parent, child = _cell(fields.get("parent")), _cell(fields.get("child"))
+            return [] if parent is None or child is None else \
+                self._retraction(robot, parent, child)
         if kind == "ormstc/done":
             return [ClaimEvent("completed", robot,
                                f"robot {robot} completed ({fields.get('cells')} cells)")]
@@ -96,6 +101,14 @@ class ClaimBook:
                                   f"robot {loser} lost cell {child} to robot {robot}")
                        for loser in sorted(set(claimants) - {robot})]
         return events
+
+    def _retraction(self, robot: int, parent: Cell, child: Cell) -> list[ClaimEvent]:
+        if self.owner.get(child) == robot:
+            del self.owner[child]
+        return [ClaimEvent("tree_edge_retracted", robot,
+                           f"robot {robot} gave cell {child} up from inside (an obstacle or a "
+                           "dead robot's body in it): no tree edge into it",
+                           edge=(min(parent, child), max(parent, child)))]
 
     def restore(self, t: float, robot: int, tree: Iterable[tuple[Cell, Cell]],
                 claims: Iterable[Cell]) -> list[ClaimEvent]:

@@ -26,7 +26,8 @@ class RecorderLink:
     written: Counter[str] = field(default_factory=Counter)
 
 EventKind = Literal[
-    "joined", "state", "claimed", "conflict_lost", "tree_edge", "died", "detected_dead",
+    "joined", "state", "claimed", "conflict_lost", "tree_edge", "tree_edge_retracted", "died",
+    "detected_dead",
     "takeover", "takeover_done", "replanned", "section_complete", "completed", "withdrawn", "left",
     "fenced", "stopped", "bump", "mission_complete", "mission_failed", "world",
 ]

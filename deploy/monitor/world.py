@@ -31,6 +31,9 @@ class WorldPicture:
         # Tree edges drawn: ORMSTC's own (built) win over those seen crossed by a walk.
         self.edges: dict[Edge, int] = {}
         self._built: set[Edge] = set()
+        # ORMSTC edges taken back (a cell given up from inside): the robot did cross that
+        # border, into the cell and back, but no tree edge runs there
+        self._retracted: set[Edge] = set()
         self._planned: tuple[Any, frozenset[Edge] | None] = (None, None)
         self._firsts_seen: tuple[npt.NDArray[np.uint8], ...] | None = None
         self._invalid = invalid  # the fleet model's counter of messages that make no sense
@@ -39,18 +42,27 @@ class WorldPicture:
         """A move between two cells runs along a spanning-tree edge (STC never crosses a
         cell border elsewhere), so the robots' walks show their trees."""
         ca, cb = (a[0] // 2, a[1] // 2), (b[0] // 2, b[1] // 2)
-        if ca != cb and abs(ca[0] - cb[0]) + abs(ca[1] - cb[1]) == 1:
-            self.edges.setdefault((min(ca, cb), max(ca, cb)), robot)
+        edge = (min(ca, cb), max(ca, cb))
+        if ca != cb and abs(ca[0] - cb[0]) + abs(ca[1] - cb[1]) == 1 \
+                and edge not in self._retracted:
+            self.edges.setdefault(edge, robot)
 
     def crossed(self, edge: Edge, robot: int) -> None:
         """simhw's first crosser of a border: the truth, so it replaces the guess made from
         the order CoverEvents of different robots arrived in (not an edge ORMSTC built)."""
-        if edge not in self._built:
+        if edge not in self._built and edge not in self._retracted:
             self.edges[edge] = robot
 
     def built_edge(self, edge: Edge, robot: int) -> None:
         self._built.add(edge)
+        self._retracted.discard(edge)
         self.edges[edge] = robot
+
+    def retracted_edge(self, edge: Edge) -> None:
+        """An ORMSTC edge its robot took back: not drawn, whoever crossed the border."""
+        self._built.discard(edge)
+        self._retracted.add(edge)
+        self.edges.pop(edge, None)
 
     def merge_firsts(self, state: WorldState) -> None:
         """First visitors and first crossers: what a late joiner never saw happen. Only

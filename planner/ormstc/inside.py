@@ -20,11 +20,11 @@ walks on from inside, where passage.reach walks round what is in the way.
 
 Safety is that of an ordinary grow: the tree edge is broadcast when the claim is won, as
 always, so the claim window's argument is unchanged (a later claim hears the edge), and the
-body only stands in a cell its robot owns. A cell given up stays owned in the peers' books
-(no message takes the edge back): nobody else can cover it either, since no robot grows
-into a cell it has not seen free, so the only effect is a tree edge into a blocked cell in
-what monitors draw. The lockstep simulator senses whole cells and answers ``HALF`` only
-with ``SimConfig.half_sense``, so its default runs are unchanged; the agents,
+body only stands in a cell its robot owns. A cell given up stays owned in the peers' books:
+nobody else grows into it, so nobody else bumps into what is in it. The robot says so with a
+``RetractionMsg``, which only monitors (and the lockstep's record of the trees) act on: they
+stop drawing a tree edge into a blocked cell. The lockstep simulator senses whole cells and
+answers ``HALF`` only with ``SimConfig.half_sense``, so its default runs are unchanged; the agents,
 tests/test_ormstc_looks.py (the driver's code, one robot) and tests/test_ormstc_inside.py
 (the lockstep with ``half_sense``: forced collisions, deaths) drive this path.
 """
@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from planner.ormstc.passage import walk_step
 from planner.ormstc.robot import ANSWER, Flow, Robot
-from planner.ormstc.types import Cell, CellStatus, Move, MoveResult, Sense
+from planner.ormstc.types import Cell, CellStatus, Move, MoveResult, RetractionMsg, Sense
 from planner.ormstc.walk import DELTA, neighbour
 
 
@@ -104,4 +104,5 @@ def give_up(m: Robot, cell: Cell, side: int) -> None:
         if not holders:
             del m.know.owners[child]
     m.given_up += 1
+    m.send(RetractionMsg(m.me, cell, child))
 

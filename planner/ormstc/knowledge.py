@@ -144,7 +144,7 @@ class Knowledge:
     def hear(self, message: Message) -> None:
         """Update the map from a peer's message (order across senders is arbitrary)."""
         handler = self.handlers.get(message.__class__)
-        if handler is not None:  # ConnectionMsg is for monitors only
+        if handler is not None:  # ConnectionMsg and RetractionMsg are for monitors only
             handler(message)
 
     def _hear_edge(self, message: TreeEdgeMsg) -> None:

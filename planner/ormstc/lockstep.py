@@ -38,6 +38,7 @@ from planner.ormstc.types import (
     PeerMessage,
     Priority,
     Request,
+    RetractionMsg,
     Sense,
     SenseMode,
     SenseResult,
@@ -332,6 +333,8 @@ class LockstepSim:
         elif kind is StartMsg:
             sub = message.sub  # type: ignore[union-attr]
             self._own(sender, (sub[0] // 2, sub[1] // 2), step)
+        elif kind is RetractionMsg:  # a cell given up from inside: no edge into it after all
+            self.trees[sender].remove((message.parent, message.child))  # type: ignore[union-attr]
         lo, hi = self.config.delay
         event = PeerMessage(sender, message)  # immutable: one object for every recipient
         alive = self.alive

@@ -183,6 +183,17 @@ class TreeEdgeMsg:
 
 
 @dataclass(frozen=True, slots=True)
+class RetractionMsg:
+    """I take back my tree edge ``parent`` -> ``child``: I grew into ``child`` on its near half
+    and found an obstacle or a dead robot's body in it from inside (planner/ormstc/inside.py).
+    For monitors only: peers keep ``child`` as mine, so nobody grows into it again."""
+
+    robot: int
+    parent: Cell
+    child: Cell
+
+
+@dataclass(frozen=True, slots=True)
 class ConnectionMsg:
     """Lines 9-10: my cell ``mine`` borders ``theirs`` of robot ``peer`` (monitoring only)."""
 
@@ -217,4 +228,4 @@ class WithdrawalMsg:
 
 
 Message = (StartMsg | ClaimMsg | TreeEdgeMsg | ConnectionMsg | DeadRobotMsg | CompletionMsg
-           | WithdrawalMsg)
+           | WithdrawalMsg | RetractionMsg)
