@@ -45,6 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _campaign(args: argparse.Namespace) -> object:
     from deploy.chaos.inject import partition_problem
     from deploy.chaos.schedule import SCENARIOS, Campaign
+    from planner.errors import PlannerError
+    from planner.maps import resolve_world
 
     def items(text: str) -> tuple[str, ...]:
         return tuple(p.strip() for p in text.split(",") if p.strip())
@@ -68,7 +70,15 @@ def _campaign(args: argparse.Namespace) -> object:
         raise UsageError(f"--sizes: expected integers, got {args.sizes!r}") from None
     if not sizes or min(sizes) < 1:
         raise UsageError("--sizes: team sizes are >= 1")
-    return Campaign(seed=args.seed, worlds=items(args.worlds), algos=algos, sizes=sizes,
+    worlds = items(args.worlds)
+    if not worlds:
+        raise UsageError("--worlds: name at least one world")
+    for world in worlds:
+        try:
+            resolve_world(world)
+        except PlannerError as exc:  # a map that cannot be read or made: the user's to fix
+            raise UsageError(f"--worlds: {exc}") from None
+    return Campaign(seed=args.seed, worlds=worlds, algos=algos, sizes=sizes,
                     scenarios=scenarios)
 
 
@@ -78,6 +88,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.jobs < 1:
         raise UsageError("--jobs: at least 1")
+    if args.trials < 1:
+        raise UsageError("--trials: at least 1")
+    if args.only is not None and args.only < 0:
+        raise UsageError("--only: a trial index, 0 or more")
     campaign = _campaign(args)
     assert isinstance(campaign, Campaign)
     out = args.out or Path("runs") / time.strftime("chaos-%Y%m%d-%H%M%S")

@@ -45,6 +45,9 @@ POLL_S = 0.5
 PACE_TICK_S = 0.02
 PACE_PATIENCE_S = 15.0
 TICK_S = 0.1
+# How often a paced start-up says how far it is: at 100 robots on 2 cores it lasts about a
+# minute, before the first coverage line (docs/operations.md, "Fleet scale").
+START_LINE_S = 5.0
 # Agent exit codes (agent/main.py): 0 done or left, 4 fenced; anything else is a failure.
 AGENT_DONE, AGENT_FENCED = 0, 4
 
@@ -116,8 +119,19 @@ class Launcher:
         await self._wait_ready(self.simhw, SIMHW_READY, 30.0)
         if self.stop.is_set():
             return
+        if self.settings.booting:
+            self.view.event(f"fleet starting: mission {self.mission}, {s.k} agents, "
+                            f"{self.settings.booting} at a time (each heard before the next "
+                            f"starts), world {s.world}, algo {s.algo}, run dir "
+                            f"{self.run_dir.path}")
+        next_line = time.monotonic() + START_LINE_S
         for robot in range(s.k):
             await self._pace()
+            if time.monotonic() >= next_line:
+                next_line = time.monotonic() + START_LINE_S
+                self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] starting agents: "
+                                f"{len(self.agents)}/{s.k} started, "
+                                f"{len(self.tracker.heard)} heard")
             if self.stop.is_set():
                 return
             self.agents.append(self._spawn(f"agent-{robot}", "agent", niced(mstc_argv(

@@ -53,6 +53,27 @@ def test_a_default_campaign_draws_every_grid_fleet_algorithm_the_cli_offers() ->
     assert drawn == set(Campaign().algos)
 
 
+@pytest.mark.parametrize(("args", "says"), [
+    (["--worlds", "nosuch"], "--worlds: nosuch: neither a builtin world"),
+    (["--worlds", "office,maze:4x4:1"], "--worlds: maze:4x4:1: a maze has odd sides"),
+    (["--worlds", ","], "--worlds: name at least one world"),
+    (["--trials", "0"], "--trials: at least 1"),
+    (["--only", "-1"], "--only: a trial index"),
+    (["--algos", "nosuch"], "--algos: 'nosuch' is not a grid fleet algorithm"),
+    (["--sizes", "0"], "--sizes: team sizes are >= 1"),
+])
+def test_a_campaign_s_mistakes_are_said_before_anything_runs(
+        args: list[str], says: str, tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "deploy.cli", "chaos", *args, "--out",
+                          str(tmp_path / "out")], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert says in out.stderr and "Traceback" not in out.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_failing_trial_s_command_re_runs_that_trial_alone(tmp_path: Path) -> None:
     campaign = Campaign(seed=3, algos=("nb", "ormstc"), sizes=(2, 3))
     command = rerun_command(campaign, 7, tmp_path)
