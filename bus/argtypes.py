@@ -67,3 +67,4 @@ def at_least(least: int) -> Callable[[str], int]:
 
 positive_int = at_least(1)
 index = at_least(0)
+seed = at_least(0)  # numpy's generators refuse a negative seed (with a traceback)

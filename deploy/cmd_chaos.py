@@ -15,6 +15,7 @@ import asyncio
 import time
 from pathlib import Path
 
+from bus import argtypes
 from deploy.chaos.schedule import GRID_FLEET
 from deploy.errors import UsageError
 
@@ -25,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trials", type=int, default=20, help="number of trials (20)")
     parser.add_argument("--only", type=int, default=None, metavar="I",
                         help="run trial I alone (the command printed for a failing trial)")
-    parser.add_argument("--seed", type=int, default=0, help="campaign seed (0)")
+    parser.add_argument("--seed", type=argtypes.seed, default=0, help="campaign seed (0)")
     parser.add_argument("--worlds", default="example",
                         help="comma-separated builtin worlds, generated worlds "
                              "(rooms:12x16:3, maze:11x15:1, ...) or map files (example)")

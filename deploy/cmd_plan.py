@@ -7,6 +7,7 @@ import json
 import sys
 from typing import Any
 
+from bus import argtypes
 from bus.argtypes import positive_int
 from deploy.errors import UsageError
 from planner.algorithms import algorithm, choices_help, names
@@ -37,7 +38,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "meaning, still works; use --starts")
     robots.add_argument("--random-robots", type=positive_int, metavar="K",
                         help="the same as --robots K (an alias kept for old scripts)")
-    parser.add_argument("--seed", type=int, default=0, help="seed for placement and trees")
+    parser.add_argument("--seed", type=argtypes.seed, default=0,
+                        help="seed for placement and trees")
     parser.add_argument("--algo", choices=ALGOS, default="opt",
                         help=f"{choices_help(ALGOS)} (balanced: one STC walk per region, "
                              f"--tree does not apply; default opt)")

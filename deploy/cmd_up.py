@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+from bus import argtypes
 from bus.argtypes import positive, positive_int, time_scale
 from bus.config import DEFAULT_ENDPOINT, DEFAULT_LEASE_MS, ConnectionSettings
 from deploy import security
@@ -69,7 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="map pixels per sub-cell side (default 1)")
     parser.add_argument("--starts", metavar="'r,c;r,c;...'",
                         help="robot start sub-cells (default: random, from --seed)")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=argtypes.seed, default=0,
                         help="seed of random starts and of the tree (default 0)")
     parser.add_argument("--time-scale", type=time_scale, default=DEFAULT_TIME_SCALE, metavar="X",
                         help="simulated seconds per wall second; 0 = as fast as possible "

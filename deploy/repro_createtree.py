@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from bus import argtypes
 from deploy.errors import UsageError
 from planner.allocation import allocate
 from planner.createtree import MEASURES, create_tree
@@ -51,7 +52,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="bridge sets tried: max{k^alpha, N} (Alg. 1) or k^alpha (prose)")
     parser.add_argument("--part", choices=("all", "main", "alpha"), default="all",
                         help="run the Create Tree vs random experiment, the alpha one, or both")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=argtypes.seed, default=0)
     parser.add_argument("--out", type=Path, default=Path("docs/results"))
     parser.add_argument("--img", type=Path, default=None,
                         help="where the PNGs go (default: --out)")

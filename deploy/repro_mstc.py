@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bus import argtypes
 from planner.experiments.instances import grid_with_obstacles
 from planner.experiments.mstc003 import ALGOS, Trial, analytic_curves, run_trial
 
@@ -27,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="comma-separated team sizes")
     parser.add_argument("--bases", default="1,2,5",
                         help="base counts for the Fig. 5 experiment ('' to skip)")
-    parser.add_argument("--seed", type=int, default=2005)
+    parser.add_argument("--seed", type=argtypes.seed, default=2005)
     parser.add_argument("--out", default="docs/results", help="folder for CSV and PNG")
 
 

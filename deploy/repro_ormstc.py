@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bus import argtypes
 from planner.errors import PlannerError
 from planner.grid import coarsen, expand, label_components, largest_component
 from planner.maps.worlds import builtin_world
@@ -47,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trials", type=int, default=10, help="trials per point (10)")
     parser.add_argument("--robots", default="2,4,6,8,10", help="comma-separated team sizes")
     parser.add_argument("--delay", type=int, default=1, help="max message delay in steps (1)")
-    parser.add_argument("--seed", type=int, default=2006)
+    parser.add_argument("--seed", type=argtypes.seed, default=2006)
     parser.add_argument("--out", default="docs/img", help="folder for the CSV and PNG")
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from bus import argtypes
 from planner.grid import coarsen, largest_component
 from planner.maps import load_map
 from planner.metrics import KOBUKI
@@ -67,7 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="random placements averaged per point (--placement random)")
     parser.add_argument("--tries", type=int, default=16,
                         help="greedy merges (seeded tie-breaks) kept best-of for 'ours best'")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=argtypes.seed, default=0)
 
 
 def load_cells(path: Path) -> BoolArray:

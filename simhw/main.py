@@ -7,6 +7,7 @@ import asyncio
 import logging
 import sys
 
+from bus import argtypes
 from bus.argtypes import non_negative, positive_int, time_scale
 from bus.config import add_connection_arguments, settings_from_args
 from bus.errors import BusError
@@ -45,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             "old spelling, kept as an alias: elsewhere --robots is a count)")
     where.add_argument("--random-robots", type=positive_int, metavar="K",
                        help="place K robots at random in the largest free component")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=argtypes.seed, default=0,
                         help="seed of random placement and odometry noise (default 0)")
     parser.add_argument("--headings", type=_headings, default=None, metavar="H,H,...",
                         help="initial heading per robot: N, E, S or W (default all N)")

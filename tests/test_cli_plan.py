@@ -79,6 +79,10 @@ def test_user_mistakes_are_one_line(capsys: pytest.CaptureFixture[str], argv: li
     (["up", "-n", "0"], "expected an integer >= 1, got '0'"),
     (["up", "--algo", "foo"], "invalid choice: 'foo'"),
     (["plan", "--map"], "expected one argument"),
+    # numpy refuses a negative seed with a traceback: every --seed is checked first
+    *[([command, "--seed", "-1"], "argument --seed: expected an integer >= 0, got '-1'")
+      for command in ("up", "plan", "chaos", "simhw", "agent", "repro-mstc", "repro-tmstc",
+                      "repro-ormstc", "repro-createtree")],
 ])
 def test_argument_errors_are_one_line_without_the_usage_block(
         capsys: pytest.CaptureFixture[str], argv: list[str], needle: str) -> None:

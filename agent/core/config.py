@@ -11,6 +11,7 @@ import argparse
 from dataclasses import dataclass
 
 from agent.core.errors import ConfigError
+from bus import argtypes
 from bus.argtypes import index, non_negative, positive, positive_int
 
 DEFAULT_START_TIMEOUT = 30.0
@@ -81,7 +82,7 @@ def add_life_arguments(parser: argparse.ArgumentParser) -> None:
 def add_body_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of the families whose robots have a simhw body (offline, ormstc)."""
     group = parser.add_argument_group("robots with a simhw body (offline, ormstc)")
-    group.add_argument("--seed", type=int, default=0,
+    group.add_argument("--seed", type=argtypes.seed, default=0,
                        help="seed of the family's random choices: the spanning tree "
                             "(offline), the machine's (ormstc); default 0")
     group.add_argument("--start-timeout", type=positive, default=DEFAULT_START_TIMEOUT,
