@@ -102,6 +102,8 @@ class MissionTracker:
     heard: set[int] = field(default_factory=set)  # robots whose status was received
     agreed: set[str] = field(default_factory=set)  # agreement notes already logged
     declared: set[tuple[int, int]] = field(default_factory=set)  # lives declared dead
+    # (life, detector) of death notices not taken: their detector was declared dead first
+    refused: set[tuple[tuple[int, int], int | None]] = field(default_factory=set)
     log: list[str] = field(default_factory=list)
     model: FleetModel = field(init=False)  # the figures' source, as in mstc monitor / report
 
@@ -212,10 +214,11 @@ class MissionTracker:
             view.state = event.kind
 
     def on_death(self, notice: DeathNotice, after: str = "") -> bool:
-        """A death notice; True the first time this life is declared dead (several robots
-        may declare the same death). Every such death gets a log line, also when the robot
-        was known lost before (killed by us or by `mstc kill`, its process gone); ``after``
-        ends that line (how long after we failed it)."""
+        """A death notice, once the model has heard it (``observe``); True the first time
+        this life is declared dead (several robots may declare the same death). Every such
+        death gets a log line, also when the robot was known lost before (killed by us or by
+        `mstc kill`, its process gone); ``after`` ends that line (how long after we failed
+        it)."""
         if not 0 <= notice.robot < self.robots:
             return False
         if notice.reason == "leaving":
@@ -226,9 +229,18 @@ class MissionTracker:
         life = (notice.robot, notice.incarnation)
         if life in self.declared:
             return False
-        self.declared.add(life)
         by = "an observer" if notice.detected_by is None else f"robot {notice.detected_by}"
         declared = f"declared dead by {by} ({notice.reason})"
+        if life not in self.model.deaths:
+            # The model (mstc monitor's and report's rule, fed first) did not take it: a robot
+            # declared dead itself declaring a live one dead (waking from a long hang, or
+            # the far side of a healed partition), which the agents do not act on either.
+            if (life, notice.detected_by) not in self.refused:
+                self.refused.add((life, notice.detected_by))
+                self.log.append(f"robot {notice.robot} {declared}: not taken, robot "
+                                f"{notice.detected_by} was declared dead itself")
+            return False
+        self.declared.add(life)
         if self.views[notice.robot].lost:
             self.log.append(f"robot {notice.robot} {declared}{after}")
         else:

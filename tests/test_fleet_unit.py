@@ -270,14 +270,44 @@ def test_robot_events_deaths_and_statuses() -> None:
     for _ in range(2):  # a re-announced event counts once
         tracker.on_event(RobotEvent(0, 1, "takeover_started", subject=2))
     tracker.on_event(RobotEvent(1, 1, "completed"))
-    tracker.on_death(DeathNotice(2, 1, detected_by=0, reason="token", detected_at=1.0))
-    tracker.on_death(DeathNotice(2, 1, detected_by=1, reason="heartbeat", detected_at=1.1))
-    tracker.on_death(DeathNotice(1, 1, detected_by=1, reason="leaving", detected_at=1.2))
+    _death(tracker, DeathNotice(2, 1, detected_by=0, reason="token", detected_at=1.0))
+    _death(tracker, DeathNotice(2, 1, detected_by=1, reason="heartbeat", detected_at=1.1))
+    _death(tracker, DeathNotice(1, 1, detected_by=1, reason="leaving", detected_at=1.2))
     assert len(tracker.takeovers) == 1
     assert tracker.views[1].completed and not tracker.views[1].lost  # left cleanly
     assert tracker.views[2].lost == "declared dead by robot 0 (token)"
     assert tracker.alive == 2
     assert sum("lost" in line for line in tracker.log) == 1
+
+
+def _death(tracker: MissionTracker, notice: DeathNotice) -> bool:
+    """As the launcher hands a death notice on: to the model first, then to the tracker."""
+    tracker.observe(notice.detected_at, keys.death("m", notice.robot), notice)
+    return tracker.on_death(notice)
+
+
+def test_a_dead_robots_verdicts_on_live_ones_do_not_lose_them() -> None:
+    """Chaos seed 4249, trial 23: robot 3, stopped 1.4 s, is declared dead by robot 1; woken,
+    its session lost, it sees no peer's token and declares robots 0, 1 and 2 dead. The agents
+    refuse those verdicts (their detector is dead) and simhw fences robot 3; the launcher
+    took them, showed "robots alive 0/4" for the rest of a mission that completed, and its
+    summary listed all four robots lost."""
+    tracker = MissionTracker(reachable_sub_cells(_open_grid(), ((0, 0),)), robots=4)
+    for robot in range(4):
+        tracker.observe(0.0, keys.status("m", robot),
+                        RobotStatus(robot, 1, (0, robot), "ormstc", "d", "covering"))
+    assert _death(tracker, DeathNotice(3, 1, detected_by=1, reason="token", detected_at=3.4))
+    for robot in (2, 1, 0, 2):
+        assert not _death(tracker, DeathNotice(robot, 1, detected_by=3, reason="token",
+                                               detected_at=3.9))
+    assert [v.robot for v in tracker.views if v.lost] == [3] and tracker.alive == 3
+    refused = [line for line in tracker.log if "not taken" in line]
+    assert len(refused) == 3  # once per verdict, however often it is heard
+    assert "robot 2 declared dead by robot 3 (token): not taken, robot 3 was declared dead " \
+           "itself" in refused
+    # a live robot's verdict on the same robot is taken
+    assert _death(tracker, DeathNotice(2, 1, detected_by=0, reason="token", detected_at=4.8))
+    assert tracker.views[2].lost == "declared dead by robot 0 (token)"
 
 
 def test_plain_progress_prints_events_and_changed_status_lines() -> None:
