@@ -84,7 +84,7 @@ def _campaign(args: argparse.Namespace) -> object:
 
 
 def run(args: argparse.Namespace) -> int:
-    from deploy.chaos.campaign import rerun_command, run_campaign, table
+    from deploy.chaos.campaign import closing_lines, run_campaign, table
     from deploy.chaos.schedule import Campaign
 
     if args.jobs < 1:
@@ -103,9 +103,6 @@ def run(args: argparse.Namespace) -> int:
                                         lambda line: print(line, flush=True), jobs=args.jobs))
     print(table(outcomes))
     print(f"trials: {out / 'trials.jsonl'}")
-    failing = [o for o in outcomes if o.verdict != "ok"]
-    for o in failing:
-        print(f"{o.verdict.upper()} trial {o.trial.index} ({o.trial.algo} k={o.trial.robots} "
-              f"{o.trial.world}, {o.trial.describe()}): {o.detail}")
-        print(f"  re-run: {rerun_command(campaign, o.trial.index, out)}")
-    return 1 if failing else 0
+    for line in closing_lines(campaign, outcomes, out):
+        print(line)
+    return 1 if any(o.verdict != "ok" for o in outcomes) else 0

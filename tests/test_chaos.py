@@ -83,6 +83,26 @@ def test_a_failing_trial_s_command_re_runs_that_trial_alone(tmp_path: Path) -> N
     assert "lost" in table([outcome]).splitlines()[0]
 
 
+def test_a_campaign_names_its_failures_then_its_false_suspicions_each_with_a_re_run(
+        tmp_path: Path) -> None:
+    from deploy.chaos.campaign import closing_lines
+
+    campaign = Campaign(seed=3, algos=("nb", "ormstc"), sizes=(2, 3))
+    clean = Outcome(make_trial(campaign, 1), "ok", "", 1.0)
+    suspected = Outcome(make_trial(campaign, 2), "ok", "", 1.0, robots_lost=[0],
+                        false_suspicions=[0])
+    lost = Outcome(make_trial(campaign, 5), "lost", "stalled", 1.0)
+    lines = closing_lines(campaign, [clean, suspected, lost], tmp_path)
+    assert len(lines) == 4
+    assert lines[0].startswith("LOST trial 5 (") and lines[0].endswith(": stalled")
+    assert lines[2].startswith("FALSE SUSPICION in trial 2 (") and "robots [0]" in lines[2]
+    assert str(tmp_path / "trial-2" / "run" / "summary.json") in lines[2]
+    for line, index in ((lines[1], 5), (lines[3], 2)):
+        args = build_parser().parse_args(line.split("re-run: ")[1].split()[1:])
+        assert args.only == index and args.seed == 3
+    assert closing_lines(campaign, [clean], tmp_path) == []
+
+
 async def test_a_campaign_runs_at_most_jobs_trials_at_once_and_a_host_starver_alone(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import asyncio

@@ -78,6 +78,27 @@ async def run_campaign(campaign: Campaign, indices: Iterable[int], out: Path,
     return outcomes
 
 
+def closing_lines(campaign: Campaign, outcomes: list[Outcome], out: Path) -> list[str]:
+    """What a campaign says after its table: each trial that was not ok, then each ok one
+    with a false suspicion (not a lost mission, but what a campaign is there to find too),
+    each with the command that re-runs it alone."""
+    lines = []
+    for o in sorted(outcomes, key=lambda o: (o.verdict == "ok", o.trial.index)):
+        what = f"trial {o.trial.index} ({o.trial.algo} k={o.trial.robots} {o.trial.world}, " \
+               f"{o.trial.describe()})"
+        if o.verdict != "ok":
+            lines.append(f"{o.verdict.upper()} {what}: {o.detail}")
+        elif o.false_suspicions:
+            summary = out / f"trial-{o.trial.index}" / "run" / "summary.json"
+            lines.append(f"FALSE SUSPICION in {what}: robots {o.false_suspicions} declared "
+                         f"dead though no fault was meant to kill or cut them off (who "
+                         f"declared them: {summary})")
+        else:
+            continue
+        lines.append(f"  re-run: {rerun_command(campaign, o.trial.index, out)}")
+    return lines
+
+
 def not_injected(outcome: Outcome) -> bool:
     """A fault fell after the mission's end (its target was gone): the trial ran without it."""
     return any(mark in line for line in outcome.injected
