@@ -214,11 +214,11 @@ class MissionTracker:
             view.state = event.kind
 
     def on_death(self, notice: DeathNotice, after: str = "") -> bool:
-        """A death notice, once the model has heard it (``observe``); True the first time
-        this life is declared dead (several robots may declare the same death). Every such
-        death gets a log line, also when the robot was known lost before (killed by us or by
-        `mstc kill`, its process gone); ``after`` ends that line (how long after we failed
-        it)."""
+        """A death notice (after the model has heard it, ``observe``, if at all); True the
+        first time this life is declared dead (several robots may declare the same death).
+        Every such death gets a log line, also when the robot was known lost before (killed
+        by us or by `mstc kill`, its process gone); ``after`` ends that line (how long after
+        we failed it)."""
         if not 0 <= notice.robot < self.robots:
             return False
         if notice.reason == "leaving":
@@ -231,10 +231,11 @@ class MissionTracker:
             return False
         by = "an observer" if notice.detected_by is None else f"robot {notice.detected_by}"
         declared = f"declared dead by {by} ({notice.reason})"
-        if life not in self.model.deaths:
-            # The model (mstc monitor's and report's rule, fed first) did not take it: a robot
-            # declared dead itself declaring a live one dead (waking from a long hang, or
-            # the far side of a healed partition), which the agents do not act on either.
+        about = self.model.roster.robots.get(notice.robot)
+        if about is not None and self.model.roster.verdict_of_the_dead(notice, about):
+            # mstc monitor's and report's rule: a robot declared dead itself declaring a live
+            # one dead (waking from a long hang, or the far side of a healed partition),
+            # which the agents do not act on either
             if (life, notice.detected_by) not in self.refused:
                 self.refused.add((life, notice.detected_by))
                 self.log.append(f"robot {notice.robot} {declared}: not taken, robot "
