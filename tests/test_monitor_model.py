@@ -6,7 +6,7 @@ import itertools
 import random
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from test_monitor_fixtures import M, open_room, run_mission, snake, two_robot_walks
 
@@ -246,6 +246,8 @@ def test_the_monitor_needs_nothing_but_the_wire() -> None:
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.tuples(st.integers(0, 2), st.integers(0, 2), st.integers(0, 3),
                           st.integers(0, 3)), max_size=40), st.floats(0.0, 1.0))
+# a claim of the robot's own cell, left in its book when it gave the cell up (found by CI)
+@example(ops=[(2, 1, 1, 1), (2, 0, 1, 1), (2, 2, 0, 0)], cut_at=1.0)
 def test_ormstc_late_and_midway_joiners_learn_trees_and_claims_from_state_replies(
         ops: list[tuple[int, int, int, int]], cut_at: float) -> None:
     """Any stream of claims, tree edges and retractions (at most one owner per cell, as

@@ -242,8 +242,10 @@ class TreeBook:
         elif isinstance(wire, OrmstcTreeEdge):
             self.tree.append((wire.parent, wire.child))
             self.claims.pop(wire.child, None)
-        elif isinstance(wire, OrmstcRetraction) and (wire.parent, wire.child) in self.tree:
-            self.tree.remove((wire.parent, wire.child))
+        elif isinstance(wire, OrmstcRetraction):  # the cell is given up: no edge, no claim
+            if (wire.parent, wire.child) in self.tree:
+                self.tree.remove((wire.parent, wire.child))
+            self.claims.pop(wire.child, None)
 
     def heard(self, wire: OrmstcWire) -> None:
         """A peer's tree edge settles our claim on its child cell (we lost it); a dead
