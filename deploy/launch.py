@@ -127,9 +127,10 @@ class Launcher:
         next_line = time.monotonic() + START_LINE_S
         for robot in range(s.k):
             await self._pace()
-            if time.monotonic() >= next_line:
-                next_line = time.monotonic() + START_LINE_S
-                self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] starting agents: "
+            now = time.monotonic()
+            if now >= next_line:
+                next_line = now + START_LINE_S
+                self.view.event(f"[{now - self.t0:6.1f}s] starting agents: "
                                 f"{len(self.agents)}/{s.k} started, "
                                 f"{len(self.tracker.heard)} heard")
             if self.stop.is_set():
