@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 from bus import keys
 from bus.bridge import BoundedFifo, Bus
+from bus.config import DEFAULT_LEASE_MS
 from bus.messages import DeathNotice, DeathReason, Heartbeat, Pose
 
 DEFAULT_HEARTBEAT_PERIOD = 0.2
@@ -29,6 +30,9 @@ DEFAULT_TOKEN_GRACE = 0.1
 # An early heartbeat (LivelinessService.beat_soon) comes at most this often, as a fraction of
 # the period: a burst of peers' claims costs at most 20 heartbeats per period.
 SOON_FRACTION = 20
+# A loop that ran this fraction of the lease late may have lost its session: a hung process's
+# session is dropped after ~0.75 x its lease (bus/config.py), so half of it is taken as enough.
+LEASE_STALL_FRACTION = 0.5
 
 
 @dataclass
@@ -55,6 +59,7 @@ class FailureDetector:
         self._peers: dict[int, _Peer] = {}
         self._dead: dict[int, DeathNotice] = {}  # robot -> notice of its newest dead life
         self._connected = True
+        self._tokens_doubtful_until = -math.inf
 
     # --- inputs ---------------------------------------------------------------------------
 
@@ -88,7 +93,7 @@ class FailureDetector:
 
     def on_token_deleted(self, robot: int, incarnation: int, now: float) -> None:
         """A token vanished: the life is declared dead by :meth:`expire` after the grace."""
-        if not self._connected:
+        if not self._connected or now < self._tokens_doubtful_until:
             return
         peer = self._peers.get(robot)
         if peer is None:
@@ -157,6 +162,18 @@ class FailureDetector:
         its own, so every peer gets a fresh timeout instead of being declared dead."""
         for peer in self._peers.values():
             peer.last_seen = max(peer.last_seen, now)
+
+    def doubt_token_deletions(self, now: float, until: float) -> None:
+        """This process stalled long enough for its router to drop its session: the token
+        deletions heard since, and until ``until``, are its own link's (Zenoh deletes every
+        remote token locally when the session goes, and re-announces them on reconnection),
+        not peers' deaths. Heartbeats alone decide meanwhile: a peer that really died then
+        is declared a timeout after its last beat rather than a grace after its token went.
+        (A woken robot that took them for deaths declared its whole fleet dead: chaos seed
+        4249, trial 23.)"""
+        for peer in self._peers.values():
+            peer.token_lost_at = None
+        self._tokens_doubtful_until = max(self._tokens_doubtful_until, until)
 
     # --- outputs --------------------------------------------------------------------------
 
@@ -265,6 +282,7 @@ class LivelinessService:
                  info: Callable[[], HeartbeatInfo] = HeartbeatInfo,
                  on_death: Callable[[DeathNotice], None] | None = None,
                  on_beat: Callable[[Heartbeat], None] | None = None,
+                 lease: float = DEFAULT_LEASE_MS / 1000,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.bus = bus
         self.robot = robot
@@ -279,6 +297,7 @@ class LivelinessService:
         self._on_death = on_death
         self._on_beat = on_beat
         self._clock = clock
+        self.lease = lease
         self._last_tick: float | None = None
         self._reminded: dict[int, float] = {}
         self._soon = asyncio.Event()
@@ -357,8 +376,11 @@ class LivelinessService:
     def tick(self) -> list[DeathNotice]:
         """Check connectivity, expire, and broadcast the deaths found (one call per tick)."""
         now = self._clock()
-        if self._last_tick is not None and now - self._last_tick > self.detector.timeout / 2:
+        stalled = 0.0 if self._last_tick is None else now - self._last_tick
+        if stalled > self.detector.timeout / 2:
             self.detector.on_local_stall(now)
+        if stalled > self.lease * LEASE_STALL_FRACTION:
+            self.detector.doubt_token_deletions(now, now + max(self.detector.timeout, self.lease))
         self._last_tick = now
         self.detector.set_connected(self._connected(), now)
         notices = self.detector.expire(now)

@@ -8,10 +8,12 @@ from __future__ import annotations
 from types import SimpleNamespace
 from typing import Any, cast
 
+import pytest
 from test_takeover_oracle import plan_of, strip_cycle
 
 from agent.offline.peers import PeerTable
 from agent.offline.runner import OfflineRunner
+from bus import keys
 from bus.drops import DropCounter
 from bus.liveness import LivelinessService
 from bus.messages import DeathNotice, Heartbeat, RobotEvent
@@ -54,6 +56,44 @@ def test_a_robots_own_stall_is_never_taken_as_a_peers_death() -> None:
         clock.now = now
         assert service.tick() == []
     clock.now = 31.2
+    assert [n.robot for n in service.tick()] == [1] and [n.robot for n in heard] == [1]
+
+
+@pytest.mark.parametrize("stall", [0.6, 1.43])
+def test_a_woken_robot_does_not_take_its_own_lost_session_for_its_peers_deaths(
+        stall: float) -> None:
+    """Chaos seed 4249, trial 23: a robot stopped for 1.43 s (past its 1 s lease, under half
+    its 3 s timeout) woke to every peer's token deleted and declared them all dead. Half a
+    lease of stall is enough to doubt those deletions; heartbeats still decide."""
+    bus, clock = FakeBus(), Clock()
+    heard: list[DeathNotice] = []
+    service = LivelinessService(cast(Any, bus), 3, 1, timeout=3.0, token_grace=0.1,
+                                lease=1.0, clock=clock, on_death=heard.append)
+    service.tick()
+    for robot in (0, 1, 2):
+        service._on_token(keys.alive("t", robot, 1), True)
+        service._on_heartbeat(f"mstc/t/hb/{robot}", Heartbeat(robot, 1, 0, None, "covering", 0.0))
+    clock.now = stall
+    for robot in (0, 1, 2):  # handed to the loop before its first tick after the stall
+        service._on_token(keys.alive("t", robot, 1), False)
+    for now in (stall, stall + 0.05, stall + 0.2, stall + 0.5):
+        clock.now = now
+        assert service.tick() == []
+    assert heard == []
+    # The positive witness: with no stall of its own, a deletion is a death after the grace.
+    for robot in (0, 1, 2):
+        service._on_token(keys.alive("t", robot, 1), True)
+    clock.now = stall + 0.55
+    while clock.now < stall + 4.5:  # ticks closer than half a lease, past the doubt
+        service._on_heartbeat("mstc/t/hb/0", Heartbeat(0, 1, 1, None, "covering", 0.0))
+        service._on_heartbeat("mstc/t/hb/1", Heartbeat(1, 1, 1, None, "covering", 0.0))
+        service._on_heartbeat("mstc/t/hb/2", Heartbeat(2, 1, 1, None, "covering", 0.0))
+        service.tick()
+        clock.now += 0.05
+    service._on_token(keys.alive("t", 1, 1), False)
+    clock.now += 0.05
+    service.tick()
+    clock.now += 0.1
     assert [n.robot for n in service.tick()] == [1] and [n.robot for n in heard] == [1]
 
 

@@ -189,6 +189,34 @@ def test_local_stall_gives_everyone_a_fresh_timeout() -> None:
     assert [n.robot for n in fd.expire(31.01)] == [1]
 
 
+def test_token_deletions_after_a_session_losing_stall_wait_for_heartbeats() -> None:
+    """Woken from a stall that cost it its session, a robot hears every peer's token go
+    (its own link's doing) before the re-announcements: no peer is declared on that, and a
+    peer that really stopped is declared a timeout after its last beat."""
+    fd = FailureDetector(timeout=3.0, token_grace=0.1, detector=3)
+    for robot in (0, 1, 2):
+        fd.on_token(robot, 1, now=0.0)
+        fd.on_heartbeat(hb(robot), now=1.0)
+    for robot in (0, 1, 2):  # heard as the loop wakes, before it notices its stall
+        fd.on_token_deleted(robot, 1, now=2.43)
+    fd.doubt_token_deletions(now=2.44, until=5.44)
+    for robot in (0, 1, 2):  # and more of them while the link comes back
+        fd.on_token_deleted(robot, 1, now=2.5)
+    assert fd.expire(2.7) == []
+    for robot in (0, 1):  # re-announced, beating again; robot 2 really hung at 1.0
+        fd.on_token(robot, 1, now=2.8)
+        for now in (3.0, 3.5, 4.0):
+            fd.on_heartbeat(hb(robot), now=now)
+    # Everyone was silent past half the timeout at 2.7, so robot 2's silence counts from 1.2
+    # (test_every_peer_silent_at_once_is_not_a_massacre).
+    assert fd.expire(4.1) == []
+    assert fd.expire(4.25) == [DeathNotice(2, 1, 3, "heartbeat", 4.25)]
+    # Once the doubt is over, a token deletion is a death after the grace again.
+    fd.on_token_deleted(1, 1, now=6.0)
+    assert fd.expire(6.05) == []
+    assert fd.expire(6.15) == [DeathNotice(1, 1, 3, "token", 6.15)]
+
+
 def test_every_peer_silent_at_once_is_not_a_massacre() -> None:
     """A router holding traffic back silences every peer at once: nobody is declared dead
     while it lasts, and a peer that stays silent when the others are heard again is declared

@@ -27,7 +27,7 @@ from agent.core.config import AgentConfig
 from agent.core.errors import AgentError, FencedError, LeaveRequested
 from bus import keys
 from bus.bridge import Bus
-from bus.config import ConnectionSettings
+from bus.config import DEFAULT_LEASE_MS, ConnectionSettings
 from bus.errors import BusError
 from bus.faults import MessageFaults
 from bus.liveness import HeartbeatInfo, LivelinessService
@@ -54,6 +54,7 @@ class AgentLife(ABC):
         self.incarnation = config.incarnation
         self.stop = asyncio.Event()
         self.error = ""
+        self.lease = DEFAULT_LEASE_MS / 1000  # the session's (run() sets it): weighs stalls
 
     def _make_liveness(self, bus: Bus, on_death: Callable[[DeathNotice], None],
                        info: Callable[[], HeartbeatInfo] = HeartbeatInfo,
@@ -61,7 +62,7 @@ class AgentLife(ABC):
         c = self.config
         return LivelinessService(bus, self.robot, self.incarnation,
                                  heartbeat_period=c.heartbeat_period, timeout=c.dead_after,
-                                 token_grace=c.token_grace,
+                                 token_grace=c.token_grace, lease=self.lease,
                                  info=info, on_death=on_death, on_beat=on_beat)
 
     def _make_announcer(self, bus: Bus,
@@ -114,6 +115,7 @@ class AgentLife(ABC):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.add_signal_handler(sig, self.stop.set)
         # Message faults for robustness trials (bus.faults; MSTC_FAULTS, unset in production)
+        self.lease = settings.lease_ms / 1000
         async with Bus.connect(settings, faults=MessageFaults.from_env()) as bus:
             self.bus = bus
             self._wire(bus)
