@@ -133,14 +133,16 @@ def test_crowded_starts_plan_is_valid_and_never_worse_than_one_partition(
 
 
 @settings(max_examples=80, deadline=None)
-@given(st.integers(1, 5), st.integers(0, 10_000))
-def test_region_assignment_matches_brute_force(k: int, seed: int) -> None:
+@given(st.integers(1, 5), st.integers(0, 10_000), st.sampled_from([0, 0, 3, 8]))
+def test_region_assignment_matches_brute_force(k: int, seed: int, slack: int) -> None:
+    """The least largest cost; among the assignments within it (plus ``slack``), the least
+    total walk."""
     rng = np.random.default_rng(seed)
     travel = rng.integers(0, 12, size=(k, k))
     travel[rng.random((k, k)) < 0.3] = UNREACHABLE  # walks that cannot be made ...
     travel[np.arange(k), rng.permutation(k)] = rng.integers(0, 12, size=k)  # ... but one fits
     sizes = rng.integers(4, 20, size=k)
-    got = assign_regions(travel, sizes)
+    got = assign_regions(travel, sizes, slack)
     assert sorted(got) == list(range(k))
 
     def worst(regions: Sequence[int]) -> int:
@@ -152,8 +154,10 @@ def test_region_assignment_matches_brute_force(k: int, seed: int) -> None:
     feasible = [p for p in itertools.permutations(range(k))
                 if all(travel[r, x] < UNREACHABLE for r, x in enumerate(p))]
     bottleneck = min(worst(p) for p in feasible)
-    assert worst(got) == bottleneck
-    assert walked(got) == min(walked(p) for p in feasible if worst(p) == bottleneck)
+    assert worst(got) <= bottleneck + slack
+    assert walked(got) == min(walked(p) for p in feasible if worst(p) <= bottleneck + slack)
+    if slack == 0:
+        assert worst(got) == bottleneck
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -18,7 +18,11 @@ to within a cell or two, so this module builds such regions and sends the robots
 4. the area is partitioned again with every robot seeded where it enters its region (its
    own start if it starts inside), its walk counted in its load, so the balancing spreads
    the walks over all robots. Steps 3-4 run ASSIGN_ROUNDS times (each partition's regions
-   are nearer the robots than the last), keeping the partition with the smallest largest load.
+   are nearer the robots than the last), keeping the partition with the smallest largest load;
+5. if that is still above the average, steps 3-4 run again from each seed set's regions with
+   the robots sent by the least total walk among assignments within WALK_SLACK of the
+   bottleneck: once balanced, every load is the average, (n + walks) / k, so a shorter
+   total walk can beat a smaller bottleneck.
 
 The caller keeps the result only if it beats the partitions grown from the starts.
 """
@@ -53,6 +57,11 @@ SPACINGS = (SPACING, FAR)
 # none of 16 instances (rooms, 30 % obstacles, mazes, city) and spares up to two of the
 # partitions that cost 1-4 s each (city 256 x 256, k = 300, seed 0: 7.1 -> 4.6 s of CPU).
 STOP_ROUNDS_FROM = 49
+# The rounds again with the robots sent by the least total walk among assignments whose
+# largest cost is within this fraction of the average load of the bottleneck's: the
+# balancing that follows spreads the loads evenly, so the walks' total is what the largest
+# load comes down to. Below STOP_ROUNDS_FROM robots only (it doubles the rounds' CPU).
+WALK_SLACK = 0.1
 ASSIGN_ROUNDS = 5  # assignment + partition rounds at most (each 0.02-0.04 s of CPU at k = 30)
 # Robot-rounds the assignment may spend (rounds cost about k times more on large maps):
 # all five up to k = 120, two at k = 300, one from k = 301 on (docs/balanced.md, "Planning
@@ -89,35 +98,49 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int, beat: int
     # Seeds that are the start cells again would regrow the caller's first partition (no
     # two distinct start cells within SPACING: no shared cell), which it has already made.
     tried: set[tuple[int, ...]] = {tuple(starts)}
+    grown: list[PartitionState] = []  # the regions of each seed set, before any rounds
     for spacing in SPACINGS:
         seeds = spread_seeds(base, starts, spacing)
         if len(seeds) < base.k or tuple(seeds) in tried:
             continue
         tried.add(tuple(seeds))
         state = make([sub_cells_of(base.cell(u))[0] for u in seeds], None)
+        if state is not None:
+            grown.append(state)
         bar = beat if best is None else min(max(best[0].load), beat or UNREACHABLE)
         found = _rounds(area, make, goal, walks, state, bar)
         if found is not None and (best is None or max(found[0].load) < max(best[0].load)):
             best = found
         if best is not None and max(best[0].load) <= goal:
-            break
+            return best
         if state is not None and max(state.load) <= goal:
             break  # these seeds split the map evenly: the walks are what is left, and
             # seeds farther from the starts would only make them longer
+    if base.k >= STOP_ROUNDS_FROM:
+        return best
+    slack = max(1, int(goal * WALK_SLACK))
+    for state in grown:  # the same regions, the robots sent to them by the shorter walks
+        bar = beat if best is None else min(max(best[0].load), beat or UNREACHABLE)
+        found = _rounds(area, make, goal, walks, state, bar, slack)
+        if found is not None and (best is None or max(found[0].load) < max(best[0].load)):
+            best = found
+        if best is not None and max(best[0].load) <= goal:
+            break
     return best
 
 
 def _rounds(area: WorkArea, make: MakePartition, goal: int, walks: Walks,
-            state: PartitionState | None, beat: int | None
+            state: PartitionState | None, beat: int | None, slack: int = 0
             ) -> tuple[PartitionState, Routes] | None:
-    """Steps 3-4 from the regions of step 2: the best partition of the assignment rounds."""
+    """Steps 3-4 from the regions of step 2: the best partition of the assignment rounds
+    (assignments within ``slack`` of the bottleneck, least total walk first)."""
     k = len(area.starts)
     best: tuple[PartitionState, Routes] | None = None
     walked = UNREACHABLE
     for _ in range(min(ASSIGN_ROUNDS, max(1, ASSIGN_BUDGET // k))):
         if state is None:
             break
-        routes = entry_routes(area, state, walks)
+        routes = entry_routes(area, state, walks, slack)
         total = sum(len(route) - 1 for route in routes.values())
         if total >= walked:
             break
@@ -241,8 +264,10 @@ def start_distances(area: WorkArea, limit: int | None = None) -> Int32Array:
     return out
 
 
-def entry_routes(area: WorkArea, state: PartitionState, walks: Walks) -> Routes:
-    """Walks (start first) of the robots to the regions ``assign_regions`` gives them.
+def entry_routes(area: WorkArea, state: PartitionState, walks: Walks, slack: int = 0
+                 ) -> Routes:
+    """Walks (start first) of the robots to the regions ``assign_regions`` gives them
+    (with ``slack``).
 
     A robot whose start lies in its region walks nowhere; the others walk to the nearest
     sub-cell of a whole cell of their region that holds no robot's start (where their
@@ -263,7 +288,7 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: Walks) -> Routes:
                         for x in range(state.k)], dtype=np.int64)
     while True:
         travel = _travel(area, state, walks.table, entries, inside)
-        regions, worst = _assignment(travel, sizes)
+        regions, worst = _assignment(travel, sizes, slack)
         if walks.limit is None:
             break
         # A walk beyond the limit costs more than limit + its region's size: if that is
@@ -271,8 +296,8 @@ def entry_routes(area: WorkArea, state: PartitionState, walks: Walks) -> Routes:
         # the full table's (the same bottleneck, the same entries within it).
         if worst is None:
             walks.widen(None)
-        elif worst - int(sizes.min()) > walks.limit:
-            walks.widen(worst - int(sizes.min()))
+        elif worst + slack - int(sizes.min()) > walks.limit:
+            walks.widen(worst + slack - int(sizes.min()))
         else:
             break
     routes: Routes = {}
@@ -306,17 +331,18 @@ def _travel(area: WorkArea, state: PartitionState, table: Int32Array, entries: l
     return travel
 
 
-def assign_regions(travel: IntArray, sizes: IntArray) -> list[int]:
+def assign_regions(travel: IntArray, sizes: IntArray, slack: int = 0) -> list[int]:
     """Region per robot minimising the largest ``travel + size``, then the total travel.
 
     The bottleneck value comes from a binary search over the distinct costs with a perfect
-    assignment test (_perfect); among assignments within it, scipy's linear_sum_assignment
-    picks the least total travel.
+    assignment test (_perfect); among assignments within it (within ``bottleneck + slack``
+    with a slack), scipy's linear_sum_assignment picks the least total travel.
     """
-    return _assignment(travel, sizes)[0]
+    return _assignment(travel, sizes, slack)[0]
 
 
-def _assignment(travel: IntArray, sizes: IntArray) -> tuple[list[int], int | None]:
+def _assignment(travel: IntArray, sizes: IntArray, slack: int = 0
+                ) -> tuple[list[int], int | None]:
     """assign_regions and its bottleneck value (None: no assignment makes every walk)."""
     cost = travel + sizes[None, :]
     values = np.unique(cost[travel < UNREACHABLE])
@@ -332,7 +358,8 @@ def _assignment(travel: IntArray, sizes: IntArray) -> tuple[list[int], int | Non
             lo = mid + 1
     if not feasible:
         feasible = _perfect(cost <= values[lo], travel)
-    masked = np.where((cost <= values[lo]) & (travel < UNREACHABLE), travel, UNREACHABLE)
+    masked = np.where((cost <= values[lo] + slack) & (travel < UNREACHABLE), travel,
+                      UNREACHABLE)
     _, regions = linear_sum_assignment(masked)
     return [int(x) for x in regions], int(values[lo]) if feasible else None
 
