@@ -12,10 +12,18 @@ from pathlib import Path
 import pytest
 
 from agent.core.config import DEFAULT_BOOT_TIMEOUT
-from deploy.chaos.campaign import rerun_command, table
+from deploy.chaos.campaign import not_injected, rerun_command, table
 from deploy.chaos.inject import partition_problem
 from deploy.chaos.schedule import SCENARIOS, Campaign, Fault, Trial, make_trial
-from deploy.chaos.trial import TRIAL_TIMEOUT_S, Outcome, judge, run_trial, trial_timeout
+from deploy.chaos.trial import (
+    TRIAL_TIMEOUT_S,
+    Outcome,
+    judge,
+    ordered_deaths,
+    run_trial,
+    trial_timeout,
+    up_argv,
+)
 from deploy.cli import build_parser
 from planner.maps import BUILTIN_WORLDS, resolve_world
 
@@ -29,6 +37,47 @@ def test_trials_are_a_function_of_the_campaign_and_the_index() -> None:
         victims = {f.robot for f in trial.faults if f.kind == "kill"}
         assert len(victims) < max(trial.robots, 2), "one robot at least is left"
     assert make_trial(Campaign(seed=6), 1) != make_trial(campaign, 1)
+
+
+def test_a_late_death_is_ordered_from_mstc_up_at_a_share_of_the_coverage(
+        tmp_path: Path) -> None:
+    """Deaths at 20-90 % coverage, whatever the world's size (fault times in seconds all fall
+    in a large world's first part): ``mstc up`` orders them (--kill, --kill-hw), the injector
+    does not, and the campaign reads from up.log whether they were carried out."""
+    campaign = Campaign(seed=9, worlds=("office", "cave"), sizes=(1, 3, 4))
+    trials = [make_trial(campaign, i) for i in range(len(SCENARIOS) * 20)]
+    late = [t for t in trials if t.scenario == "late-death"]
+    assert {t.robots for t in late} >= {1, 3}
+    kinds = set()
+    for trial in late:
+        if trial.robots == 1:
+            assert trial.faults == (), "the one robot must live"
+            continue
+        (fault,) = trial.faults
+        assert fault.by_coverage and fault.percent is not None
+        assert 20.0 <= fault.percent <= 90.0
+        kinds.add(fault.kind)
+        assert trial.killed == {fault.robot}, "so its loss is no false suspicion"
+        argv = up_argv(trial, "tcp/127.0.0.1:1", tmp_path, tmp_path / "r.jsonl")
+        flag = "--kill" if fault.kind == "kill" else "--kill-hw"
+        assert argv[argv.index(flag) + 1] == f"{fault.robot}@progress={fault.percent:g}"
+        order = build_parser().parse_args(argv[argv.index("up"):])
+        assert len(order.kill) + len(order.kill_hw) == 1
+    assert kinds == {"kill", "body-fail"}
+    assert not any(f.by_coverage for t in trials if t.scenario != "late-death" for f in t.faults)
+
+    kill = Fault("kill", 0.0, 2, percent=45.5)
+    fail = Fault("body-fail", 0.0, 1, percent=70.0)
+    trial = _trial("opt", 4, kill, fail, scenario="late-death")
+    said = ordered_deaths(trial, "[   3.1s] SIGKILL agent 2 at 45.5 %: done (coverage 45.6 %)\n"
+                                 "  not carried out (the mission ended first): fail body of 1 at "
+                                 "70 %\n")
+    assert said == ["kill robot 2 at 45.5 % coverage: done (coverage 45.6 %)",
+                    "body-fail robot 1 at 70 % coverage: not carried out (the mission ended "
+                    "first)"]
+    assert ordered_deaths(trial, "")[0].endswith("not carried out (mstc up does not say it was)")
+    assert not_injected(Outcome(trial, "ok", "", 1.0, injected=said))
+    assert not not_injected(Outcome(trial, "ok", "", 1.0, injected=said[:1]))
 
 
 @pytest.mark.parametrize("world", sorted(BUILTIN_WORLDS))
@@ -237,6 +286,18 @@ async def test_a_death_at_any_phase_is_survived(phase: str, tmp_path: Path) -> N
 async def test_a_death_while_taking_over_is_survived(tmp_path: Path) -> None:
     await _judged(_trial("bt", 3, Fault("kill", 0.3, 2, mark="driving"),
                          Fault("kill", 1.0, 1, mark="driving")), tmp_path)
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+@pytest.mark.parametrize(("kind", "algo"), [("kill", "balanced"), ("body-fail", "ormstc")])
+async def test_a_death_at_a_share_of_the_coverage_is_survived(kind: str, algo: str,
+                                                               tmp_path: Path) -> None:
+    outcome = await _judged(_trial(algo, 3, Fault(kind, 0.0, 1, percent=60.0),
+                                   scenario="late-death"), tmp_path)
+    (said,) = outcome.injected
+    assert said.startswith(f"{kind} robot 1 at 60 % coverage: done (coverage "), said
+    assert outcome.robots_lost == [1] and outcome.false_suspicions == []
 
 
 @pytest.mark.integration

@@ -19,10 +19,15 @@ from planner.algorithms import Family, algorithm, names
 GRID_FLEET = tuple(n for n in names(fleet=True) if algorithm(n).family is not Family.TREE)
 # What a trial's schedule is made of; "mixed" combines a kill, a hang and message loss.
 SCENARIOS = ("none", "early-kill", "kill", "kills", "hang", "long-hang", "loss",
-             "router-restart", "router-freeze", "partition", "mixed", "starve", "starve-host")
+             "router-restart", "router-freeze", "partition", "mixed", "starve", "starve-host",
+             "late-death")
 # "starve" throttles one robot to a share of the CPU; "starve-host" (robot None) runs one
 # busy process per core beside the whole fleet, so it starves anything else on the host too.
 PROCESS_FAULTS = ("kill", "hang", "router-kill", "router-freeze", "partition", "starve")
+# Deaths `mstc up` itself orders at a share of the coverage (--kill, --kill-hw), so that they
+# fall in every phase of a mission whatever its world's size: "late-death" draws one. The
+# other faults' times are seconds, and on a large world they all fall in its first part.
+COVERAGE_FAULTS = ("kill", "body-fail")
 # LookSteps only tell a report which re-entries were made to sense (no agent reads them):
 # losing one blinds the recording, which is not what a loss trial tests.
 LOSS_SPEC = ("*.drop=0.03;*.lose=0.03;*.dup=0.05;*.delay=0.05;*.reorder=0.05;window=0.1;"
@@ -35,7 +40,9 @@ class Fault:
     router; for "starve", the whole host), ``seconds`` how long a hang, freeze, partition,
     router outage or starvation lasts, ``share`` the part of each 100 ms a starved robot may
     run. With a ``mark``, ``at`` counts from the moment the target's log first shows that
-    text (a phase of its life: "gathering", "participants", "driving", "completed")."""
+    text (a phase of its life: "gathering", "participants", "driving", "completed"). With a
+    ``percent``, ``at`` is unused: ``mstc up`` kills the robot's process ("kill") or fails
+    its body in simhw ("body-fail") once that much of the area is covered."""
 
     kind: str
     at: float
@@ -43,8 +50,16 @@ class Fault:
     seconds: float = 0.0
     mark: str = ""
     share: float = 1.0
+    percent: float | None = None
+
+    @property
+    def by_coverage(self) -> bool:
+        """Ordered from ``mstc up``'s command line rather than injected on a clock."""
+        return self.percent is not None
 
     def describe(self) -> str:
+        if self.percent is not None:
+            return f"{self.kind} robot {self.robot} at {self.percent:g} % coverage"
         host = "host" if self.kind == "starve" else "router"
         target = host if self.robot is None else f"robot {self.robot}"
         span = f" for {self.seconds:.1f} s" if self.seconds else ""
@@ -69,7 +84,8 @@ class Trial:
     def killed(self) -> set[int]:
         """Robots that are meant to die (killed, or hung past the death timeout)."""
         return {f.robot for f in self.faults if f.robot is not None
-                and (f.kind == "kill" or (f.kind == "hang" and f.seconds >= DEATH_HANG_S))}
+                and (f.kind in COVERAGE_FAULTS
+                     or (f.kind == "hang" and f.seconds >= DEATH_HANG_S))}
 
     @property
     def cut_off(self) -> set[int]:
@@ -131,7 +147,7 @@ def make_trial(campaign: Campaign, index: int) -> Trial:
     elif scenario == "kill":
         faults.append(Fault("kill", round(rng.uniform(0.5, 6.0), 2), victims[0]))
     elif scenario == "kills":  # up to k - 1, from start-up on
-        for robot in victims[:max(1, rng.randint(1, k - 1))]:
+        for robot in victims[:rng.randint(1, max(1, k - 1))]:
             faults.append(Fault("kill", round(rng.uniform(0.3, 6.0), 2), robot))
     elif scenario == "hang":
         faults.append(Fault("hang", round(rng.uniform(1.0, 5.0), 2), victims[0],
@@ -163,8 +179,11 @@ def make_trial(campaign: Campaign, index: int) -> Trial:
             faults.append(Fault("hang", round(rng.uniform(1.0, 5.0), 2), victims[1],
                                 round(rng.uniform(0.3, 1.5), 2)))
         messages = f"seed={seed};{LOSS_SPEC}"
+    elif scenario == "late-death":  # at 20-90 % coverage, the process or its body
+        faults.append(Fault(rng.choice(COVERAGE_FAULTS), 0.0, victims[0],
+                            percent=round(rng.uniform(20.0, 90.0), 1)))
     if k == 1:  # the one robot must live: faults that kill it prove nothing
-        faults = [f for f in faults if f.kind not in ("kill",) and
+        faults = [f for f in faults if f.kind not in COVERAGE_FAULTS and
                   not (f.kind == "hang" and f.seconds >= DEATH_HANG_S)]
     return Trial(index, seed, world, algo, k, scenario,
                  tuple(sorted(faults, key=lambda f: f.at)), messages)

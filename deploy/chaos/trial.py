@@ -30,6 +30,7 @@ from bus.faults import ENV as FAULTS_ENV
 from deploy.chaos.inject import Injector, RouterProcess
 from deploy.chaos.schedule import Trial
 from deploy.fleet import mstc_argv
+from deploy.settings import KillOrder
 from planner.maps import resolve_world
 
 TRIAL_TIMEOUT_S = 120.0
@@ -88,11 +89,14 @@ def free_port() -> int:
 
 
 def up_argv(trial: Trial, endpoint: str, run_dir: Path, record: Path) -> list[str]:
+    deaths = [arg for f in trial.faults if f.by_coverage
+              for arg in ("--kill" if f.kind == "kill" else "--kill-hw",
+                          f"{f.robot}@progress={f.percent:g}")]
     return mstc_argv(
         "up", "-n", str(trial.robots), "--world", trial.world, "--algo", trial.algo,
         "--seed", str(trial.seed), "--time-scale", "0", "--plain", "--connect", endpoint,
         "--mission", f"chaos-{trial.index}-{trial.seed}", "--run-dir", str(run_dir),
-        "--record", str(record), "--linger", "1", "--stall-timeout", "25")
+        "--record", str(record), "--linger", "1", "--stall-timeout", "25", *deaths)
 
 
 async def run_trial(trial: Trial, workdir: Path) -> Outcome:
@@ -116,8 +120,9 @@ async def run_trial(trial: Trial, workdir: Path) -> Outcome:
         try:
             async with asyncio.timeout(trial_timeout(trial)), asyncio.TaskGroup() as group:
                 for fault in trial.faults:
-                    group.create_task(_at(t0 + (0.0 if fault.mark else fault.at), injector,
-                                          fault))
+                    if not fault.by_coverage:  # those are mstc up's (up_argv)
+                        group.create_task(_at(t0 + (0.0 if fault.mark else fault.at),
+                                              injector, fault))
                 code = await asyncio.to_thread(up.wait)
         except TimeoutError:
             await asyncio.to_thread(_stop, up)
@@ -152,7 +157,8 @@ def _stop(up: subprocess.Popen[bytes]) -> None:
 def judge(trial: Trial, workdir: Path, code: int | None, wall: float,
           injected: list[str]) -> Outcome:
     """The verdict of a finished trial from its summary.json and its recording."""
-    outcome = Outcome(trial, "ok", "", round(wall, 2), injected=injected, exit_code=code)
+    outcome = Outcome(trial, "ok", "", round(wall, 2), exit_code=code,
+                      injected=injected + ordered_deaths(trial, _read(workdir / "up.log")))
     summary_path = workdir / "run" / "summary.json"
     if code is None:
         outcome.verdict = "lost"
@@ -194,6 +200,35 @@ def judge(trial: Trial, workdir: Path, code: int | None, wall: float,
         outcome.verdict = "gap"
         outcome.detail = "; ".join(outcome.report_failures)
     return outcome
+
+
+LATE_ORDERS = "not carried out (the mission ended first): "  # mstc up's line (deploy/launch.py)
+
+
+def ordered_deaths(trial: Trial, up_log: str) -> list[str]:
+    """What ``mstc up`` says of the deaths it was told to order (Fault.by_coverage): done
+    (with the coverage it was done at) or not carried out, in the campaign's words."""
+    out = []
+    for fault in trial.faults:
+        if not fault.by_coverage:
+            continue
+        order = KillOrder(fault.robot or 0, percent=fault.percent,
+                          hw=fault.kind != "kill").describe()
+        lines = up_log.splitlines()
+        done = next((line for line in lines if f"{order}: done" in line), None)
+        if done is not None:
+            out.append(f"{fault.describe()}: done{done.split(': done', 1)[1]}")
+        elif any(line.strip().startswith(LATE_ORDERS) and order in line for line in lines):
+            out.append(f"{fault.describe()}: not carried out (the mission ended first)")
+        else:
+            out.append(f"{fault.describe()}: not carried out (mstc up does not say it was)")
+    return out
+
+
+def _read(path: Path) -> str:
+    with contextlib.suppress(OSError):
+        return path.read_text(errors="replace")
+    return ""
 
 
 def _tail(path: Path, lines: int = 3) -> str:
