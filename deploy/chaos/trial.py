@@ -210,9 +210,9 @@ def ordered_deaths(trial: Trial, up_log: str) -> list[str]:
     (with the coverage it was done at) or not carried out, in the campaign's words."""
     out = []
     for fault in trial.faults:
-        if not fault.by_coverage:
+        if not fault.by_coverage or fault.robot is None:  # make_trial gives these a robot
             continue
-        order = KillOrder(fault.robot or 0, percent=fault.percent,
+        order = KillOrder(fault.robot, percent=fault.percent,
                           hw=fault.kind != "kill").describe()
         lines = up_log.splitlines()
         done = next((line for line in lines if f"{order}: done" in line), None)

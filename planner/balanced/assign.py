@@ -58,7 +58,7 @@ SPACINGS = (SPACING, FAR)
 # partitions that cost 1-4 s each (city 256 x 256, k = 300, seed 0: 7.1 -> 4.6 s of CPU).
 STOP_ROUNDS_FROM = 49
 # The rounds again with the robots sent by the least total walk among assignments whose
-# largest cost is within this fraction of the average load of the bottleneck's: the
+# largest cost exceeds the bottleneck by at most this fraction of the average load: the
 # balancing that follows spreads the loads evenly, so the walks' total is what the largest
 # load comes down to. Below STOP_ROUNDS_FROM robots only (it doubles the rounds' CPU).
 WALK_SLACK = 0.1
