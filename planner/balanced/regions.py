@@ -9,8 +9,10 @@ cell it could own, and a second partition seeds it there, its load counting the 
 Robots squeezed into strips by neighbours that start beside them are moved the same way to
 roomier seeds a few cells off (relocate.py), greedily, while that lowers the largest load.
 If the largest load is still above the average, regions grown from well-spread seeds are
-tried too, every robot walking to the region an assignment gives it (assign.py). Last,
-walking robots are seeded a cell earlier along their walks (pullback.py), if that is better.
+tried too, every robot walking to the region an assignment gives it (assign.py). If that
+still stalls, robots at or below the average are sent to the most loaded regions
+(reinforce.py). Last, walking robots are seeded a cell earlier along their walks
+(pullback.py), if that is better.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from planner.balanced.assign import assigned_partition
 from planner.balanced.balance import balance
 from planner.balanced.growth import grow, seed_regions, unclaimed
 from planner.balanced.pullback import pulled_back_routes
+from planner.balanced.reinforce import reinforced
 from planner.balanced.relocate import relocation_routes, squeezed, sub_cell_route
 from planner.balanced.state import PartitionState, articulation_points
 from planner.balanced.types import Partition
@@ -76,8 +79,10 @@ def plan_regions(area: WorkArea, *, seed: int = 0
     MAX_PARTITIONS partitions are made so (fewer with many robots: RELOCATION_BUDGET). If
     the best is still above the average, robots are assigned to regions grown from spread
     seeds (assign.py, up to 1 + ASSIGN_ROUNDS more partitions), kept on the same terms. If
-    the best is still above the average and some robots walk, one more partition seeds
-    them a cell earlier along their walks (pullback.py), kept on the same terms.
+    the best is still above the average, robots are sent to the most loaded regions
+    (reinforce.py, up to its MAX_PARTITIONS partitions). If it is still above the average
+    and some robots walk, one more partition seeds them a cell earlier along their walks
+    (pullback.py), kept on the same terms.
     """
     state = _partition_state(area, seed, None, None)
     if state is None:
@@ -108,6 +113,10 @@ def plan_regions(area: WorkArea, *, seed: int = 0
             max(best.load))
         if assigned is not None and max(assigned[0].load) < max(best.load):
             best, best_routes = assigned
+    if max(best.load) > goal:
+        best, best_routes = reinforced(
+            area, best, best_routes, goal,
+            lambda starts, offsets: _partition_state(area, seed, starts, offsets))
     if max(best.load) > goal and best_routes:
         best, best_routes = _pulled_back(area, seed, best, best_routes)
     return best.to_partition(best.transfers), best_routes
