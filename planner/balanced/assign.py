@@ -22,7 +22,8 @@ to within a cell or two, so this module builds such regions and sends the robots
 5. if that is still above the average, steps 3-4 run again from each seed set's regions with
    the robots sent by the least total walk among assignments within WALK_SLACK of the
    bottleneck: once balanced, every load is the average, (n + walks) / k, so a shorter
-   total walk can beat a smaller bottleneck.
+   total walk can beat a smaller bottleneck. ``reassigned`` runs steps 3-5 from regions
+   made elsewhere (after reinforce.py has sent robots to the most loaded ones).
 
 The caller keeps the result only if it beats the partitions grown from the starts.
 """
@@ -126,6 +127,22 @@ def assigned_partition(area: WorkArea, make: MakePartition, goal: int, beat: int
             best = found
         if best is not None and max(best[0].load) <= goal:
             break
+    return best
+
+
+def reassigned(area: WorkArea, make: MakePartition, goal: int, state: PartitionState
+               ) -> tuple[PartitionState, Routes] | None:
+    """Steps 3-5 from the regions of ``state`` (a partition already made with walks, such as
+    reinforce.py's): the best partition of their rounds, bottleneck first and then the
+    shorter walks; None if none was made. Below STOP_ROUNDS_FROM robots only."""
+    if state.k >= STOP_ROUNDS_FROM:
+        return None
+    walks = Walks(area, WALK_LIMIT)
+    best: tuple[PartitionState, Routes] | None = None
+    for slack in (0, max(1, int(goal * WALK_SLACK))):
+        found = _rounds(area, make, goal, walks, state, None, slack)
+        if found is not None and (best is None or max(found[0].load) < max(best[0].load)):
+            best = found
     return best
 
 

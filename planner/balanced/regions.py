@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterator, Sequence
 
-from planner.balanced.assign import assigned_partition
+from planner.balanced.assign import assigned_partition, reassigned
 from planner.balanced.balance import balance
 from planner.balanced.growth import grow, seed_regions, unclaimed
 from planner.balanced.pullback import pulled_back_routes
@@ -114,12 +114,35 @@ def plan_regions(area: WorkArea, *, seed: int = 0
         if assigned is not None and max(assigned[0].load) < max(best.load):
             best, best_routes = assigned
     if max(best.load) > goal:
-        best, best_routes = reinforced(
-            area, best, best_routes, goal,
-            lambda starts, offsets: _partition_state(area, seed, starts, offsets))
+        best, best_routes = _reinforced(area, seed, goal, best, best_routes)
     if max(best.load) > goal and best_routes:
         best, best_routes = _pulled_back(area, seed, best, best_routes)
     return best.to_partition(best.transfers), best_routes
+
+
+def _reinforced(area: WorkArea, seed: int, goal: int, state: PartitionState,
+                routes: dict[int, tuple[SubCell, ...]]
+                ) -> tuple[PartitionState, dict[int, tuple[SubCell, ...]]]:
+    """Robots sent to the most loaded regions (reinforce.py); then, with fewer than
+    assign.STOP_ROUNDS_FROM robots, the robots assigned again to the regions that made
+    (assign.reassigned: the walks in change with the regions) and reinforced once more.
+    Each step is kept only if it lowers the largest load (or the regions holding it)."""
+    def make(starts: Sequence[SubCell], offsets: Sequence[int] | None
+             ) -> PartitionState | None:
+        return _partition_state(area, seed, starts, offsets)
+
+    best, best_routes = reinforced(area, state, routes, goal, make)
+    if max(best.load) <= goal:
+        return best, best_routes
+    again = reassigned(area, make, goal, best)
+    if again is None or _score(again[0]) >= _score(best):
+        return best, best_routes
+    return reinforced(area, again[0], again[1], goal, make)
+
+
+def _score(state: PartitionState) -> tuple[int, int]:
+    top = max(state.load)
+    return top, state.load.count(top)
 
 
 def _elsewhere(area: WorkArea, seed: int
