@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from planner.balanced import balanced_plan
 from planner.balanced import regions as regions_module
 from planner.balanced.regions import _ideal, _partition_state, plan_regions
-from planner.balanced.reinforce import reinforced
+from planner.balanced.reinforce import reinforced, score
 from planner.balanced.relocate import relocation_routes
 from planner.balanced.state import PartitionState, articulation_points
 from planner.balanced.types import Partition
@@ -50,6 +50,7 @@ def _walk_length(area: WorkArea, start: SubCell, goal: set[SubCell]) -> int:
     raise AssertionError("unreachable")
 
 
+@pytest.mark.slow  # two plans at k = 30 on 40 x 40 (5 s); the property test below is quick
 def test_a_dead_end_chain_of_rooms_gets_one_more_robot(monkeypatch: pytest.MonkeyPatch
                                                       ) -> None:
     """Rooms 40 x 40, seed 81, k = 30: four robots walk into a chain of four rooms whose
@@ -95,12 +96,11 @@ def test_reinforcing_never_raises_the_largest_load_and_walks_are_shortest(
         return _partition_state(area, seed, starts_, offsets)
 
     best, walks = reinforced(area, state, routes, goal, make)
-    assert max(best.load) <= max(state.load)
-    if max(best.load) == max(state.load):
-        assert best.load.count(max(best.load)) <= state.load.count(max(state.load))
     moved = {r for r in walks if walks[r] != routes.get(r)}
-    if best is state:
-        assert not moved
+    if best is state:  # nothing gained: no walk taken
+        assert walks == routes
+    else:  # a lower largest load, or as low and held by fewer regions
+        assert score(best) < score(state) and moved
     cells = {u for u, free in enumerate(state.free) if free}
     forbidden = articulation_points(cells, state.neighbours) | \
         {state.flat(cell_of(s)) for s in starts}
@@ -134,6 +134,7 @@ def test_a_balanced_map_is_left_alone() -> None:
     assert math.isclose(np.mean(state.load), area.n / 4)
 
 
+@pytest.mark.slow
 def test_robots_are_assigned_again_to_the_reinforced_regions(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """Rooms 40 x 40, seed 83, k = 20: once robots were sent to the most loaded regions,

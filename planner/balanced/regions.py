@@ -24,7 +24,7 @@ from planner.balanced.assign import assigned_partition, reassigned
 from planner.balanced.balance import balance
 from planner.balanced.growth import grow, seed_regions, unclaimed
 from planner.balanced.pullback import pulled_back_routes
-from planner.balanced.reinforce import reinforced
+from planner.balanced.reinforce import reinforced, score
 from planner.balanced.relocate import relocation_routes, squeezed, sub_cell_route
 from planner.balanced.state import PartitionState, articulation_points
 from planner.balanced.types import Partition
@@ -125,24 +125,19 @@ def _reinforced(area: WorkArea, seed: int, goal: int, state: PartitionState,
                 ) -> tuple[PartitionState, dict[int, tuple[SubCell, ...]]]:
     """Robots sent to the most loaded regions (reinforce.py); then, with fewer than
     assign.STOP_ROUNDS_FROM robots, the robots assigned again to the regions that made
-    (assign.reassigned: the walks in change with the regions) and reinforced once more.
-    Each step is kept only if it lowers the largest load (or the regions holding it)."""
+    (assign.reassigned: the walks in change with the regions), reinforced once more if
+    that was a step forward (reinforce.score). Kept only if the largest load is lower than
+    ``state``'s: walks are taken only when they pay."""
     def make(starts: Sequence[SubCell], offsets: Sequence[int] | None
              ) -> PartitionState | None:
         return _partition_state(area, seed, starts, offsets)
 
-    best, best_routes = reinforced(area, state, routes, goal, make)
-    if max(best.load) <= goal:
-        return best, best_routes
-    again = reassigned(area, make, goal, best)
-    if again is None or _score(again[0]) >= _score(best):
-        return best, best_routes
-    return reinforced(area, again[0], again[1], goal, make)
-
-
-def _score(state: PartitionState) -> tuple[int, int]:
-    top = max(state.load)
-    return top, state.load.count(top)
+    best = reinforced(area, state, routes, goal, make)
+    if max(best[0].load) > goal:
+        again = reassigned(area, make, goal, best[0])
+        if again is not None and score(again[0]) < score(best[0]):
+            best = reinforced(area, again[0], again[1], goal, make)
+    return best if max(best[0].load) < max(state.load) else (state, routes)
 
 
 def _elsewhere(area: WorkArea, seed: int

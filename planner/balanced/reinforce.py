@@ -38,9 +38,11 @@ _UNREACHED = 1 << 30
 def reinforced(area: WorkArea, state: PartitionState, routes: Routes, goal: int,
                make: MakePartition) -> tuple[PartitionState, Routes]:
     """``state`` and its walks (``routes``, start first, by robot), or a partition with a
-    lower largest load (or as low, held by fewer regions) after robots were sent to the
-    most loaded regions. ``make(starts, offsets)`` partitions the area from those seeds
-    with those walks in the loads; ``goal`` is the average load, where it stops."""
+    lower largest load, or as low and held by fewer regions (a step on the way, which the
+    caller may not keep: regions.py takes walks only when they lower the largest load),
+    after robots were sent to the most loaded regions. ``make(starts, offsets)``
+    partitions the area from those seeds with those walks in the loads; ``goal`` is the
+    average load, where it stops."""
     k = state.k
     budget = min(MAX_PARTITIONS, BUDGET // k)
     cells = {u for u, free in enumerate(state.free) if free}
@@ -70,7 +72,7 @@ def reinforced(area: WorkArea, state: PartitionState, routes: Routes, goal: int,
             made += 1
             again = make([trial[r][-1] if r in trial else s for r, s in enumerate(area.starts)],
                          [len(trial[r]) - 1 if r in trial else 0 for r in range(k)])
-            if again is not None and _score(again) < _score(best):
+            if again is not None and score(again) < score(best):
                 found = (again, trial)
                 break
             if made >= budget:
@@ -95,6 +97,7 @@ def _new_seed(state: PartitionState, routes: Routes, area: WorkArea,
     return max(spots, key=lambda u: (far[u], -u)) if spots else None
 
 
-def _score(state: PartitionState) -> tuple[int, int]:
+def score(state: PartitionState) -> tuple[int, int]:
+    """The largest load, then how many regions hold it (fewer: a step towards lowering it)."""
     top = max(state.load)
     return top, state.load.count(top)
