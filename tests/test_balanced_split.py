@@ -164,6 +164,7 @@ def test_a_split_of_an_area_is_a_valid_plan_under_its_bound(spec: str, k: int,
     assert split_cycle(area, cycle, below=math.ceil(area.n / k) - 1) is None
 
 
+@pytest.mark.slow  # over 4 s (the quick loop stays near a minute)
 def test_the_registry_keeps_the_best_of_regions_opt_and_split_and_the_split_wins_on_mazes(
         ) -> None:
     """Perfect mazes with robots at random: a stretch of the maze's cycle reached by a walk
@@ -231,6 +232,7 @@ def test_the_flow_bound_is_never_above_the_best_plan_found_by_brute_force(
     assert math.ceil(area.n / k) - 1 <= bound <= best
 
 
+@pytest.mark.slow  # over 4 s (the quick loop stays near a minute)
 def test_the_flow_bound_lifts_a_maze_and_stays_below_every_plan() -> None:
     """On a perfect maze robots must walk corridors before they cover anything alone: the
     bound rises above ceil(n/k) - 1 (measured 245 against 159 here) and stays below the

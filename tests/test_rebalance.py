@@ -166,6 +166,7 @@ def masked(seed: int) -> Cycle:
     return Cycle(path, index)
 
 
+@pytest.mark.slow  # over 4 s (the quick loop stays near a minute)
 def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
     """Grid searches a window round two near places first (planner.offline.rebalance.Grid).
     From two sources of one winding grid (seed 2) to every place within NEAR: every

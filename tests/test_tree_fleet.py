@@ -338,6 +338,7 @@ async def test_a_recorder_that_never_catches_up_is_named_not_waited_for_ever(
     assert f"the recording has 0 of the {heard} reports the launcher heard" in "\n".join(said)
 
 
+@pytest.mark.slow  # over 4 s (the quick loop stays near a minute)
 async def test_a_recorder_that_lags_but_keeps_writing_is_waited_for(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A recorder behind the launcher on a busy host is waited for as long as it writes:
