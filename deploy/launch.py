@@ -34,7 +34,7 @@ from deploy.errors import FleetError
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv, niced
 from deploy.progress import ProgressView, make_progress
 from deploy.security import FleetSecurity
-from deploy.settings import MissionSetup, UpSettings
+from deploy.settings import NOT_CARRIED_OUT, MissionSetup, UpSettings
 from deploy.summary import MissionTracker, format_summary, summarize
 from deploy.supervisor import KillSchedule, Supervisor
 from planner.offline.rebalance import DEFAULT_RECOVERY
@@ -396,7 +396,7 @@ async def launch(setup: MissionSetup, settings: UpSettings, endpoint: str, t0: f
             view.close()
             print(format_summary(summary), flush=True)
             if launcher.kills.pending:  # a clean run is no survived kill: say what never came
-                print("  not carried out (the mission ended first): " + ", ".join(
+                print("  " + NOT_CARRIED_OUT + ", ".join(
                     order.describe() for order in launcher.kills.pending), flush=True)
             rd.write_summary(summary.to_json())
             if outcome.code == 0 and not summary.complete:

@@ -93,6 +93,11 @@ _KILL_RE = re.compile(
     r"|(?P<sec>\d+(?:\.\d+)?)s?)$")
 
 
+# How `mstc up` lists the kills a mission ended before (deploy/launch.py; read back by the
+# chaos campaign, deploy/chaos/trial.py).
+NOT_CARRIED_OUT = "not carried out (the mission ended first): "
+
+
 @dataclass(frozen=True)
 class KillOrder:
     """Kill ``robot`` at ``seconds`` after the mission started, at ``percent`` coverage, or

@@ -112,3 +112,21 @@ def check_balanced(grid: OccupancyGrid, starts: tuple[SubCell, ...], seed: int) 
     check_plan(plan, area)  # every sub-cell exactly once, by one robot, 4-adjacent moves
     assert [rp.steps for rp in plan.robots] == [size - 1 for size in parts.sizes]
     assert sum(rp.steps + 1 for rp in plan.robots) == area.n
+
+
+def grid_distances(free: np.ndarray, sources: Sequence[tuple[int, int]]
+                   ) -> dict[tuple[int, int], int]:
+    """Oracle: breadth-first distances over a grid's free cells (or sub-cells) from the
+    nearest source."""
+    h, w = free.shape
+    dist = dict.fromkeys(sources, 0)
+    frontier = list(sources)
+    while frontier:
+        nxt = []
+        for r, c in frontier:
+            for cell in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
+                if 0 <= cell[0] < h and 0 <= cell[1] < w and free[cell] and cell not in dist:
+                    dist[cell] = dist[(r, c)] + 1
+                    nxt.append(cell)
+        frontier = nxt
+    return dist

@@ -10,6 +10,7 @@ from collections.abc import Sequence
 import numpy as np
 import pytest
 from balanced_helpers import (
+    grid_distances,
     instances,
     relaxed,
 )
@@ -44,24 +45,6 @@ from planner.types import OccupancyGrid, SubCell
 # --- squeezed robots moved to roomier seeds (relocate.py) ------------------------------
 
 
-def _cell_distances(area_cells: np.ndarray, sources: Sequence[tuple[int, int]]
-                    ) -> dict[tuple[int, int], int]:
-    """Oracle: breadth-first distances over a grid's free cells from the nearest source."""
-    h, w = area_cells.shape
-    dist = dict.fromkeys(sources, 0)
-    frontier = list(sources)
-    while frontier:
-        nxt = []
-        for r, c in frontier:
-            for cell in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
-                if 0 <= cell[0] < h and 0 <= cell[1] < w and area_cells[cell] \
-                        and cell not in dist:
-                    dist[cell] = dist[(r, c)] + 1
-                    nxt.append(cell)
-        frontier = nxt
-    return dist
-
-
 def _is_cut(area_cells: np.ndarray, cell: tuple[int, int]) -> bool:
     without = area_cells.copy()
     without[cell] = False
@@ -90,12 +73,12 @@ def test_relocation_walks_go_to_roomier_open_cells(
         assert walk[0] == starts[robot]
         assert all(area.sub_cells[s] for s in walk)
         target = (walk[-1][0] // 2, walk[-1][1] // 2)
-        reach = _cell_distances(area.sub_cells, [starts[robot]])  # a shortest walk there
+        reach = grid_distances(area.sub_cells, [starts[robot]])  # a shortest walk there
         assert len(walk) - 1 == min(reach[s] for s in sub_cells_of(target))
         assert target not in homes and not _is_cut(area.cells, target)
-        assert _cell_distances(area.cells, [homes[robot]])[target] <= radius
+        assert grid_distances(area.cells, [homes[robot]])[target] <= radius
         others = [h for i, h in enumerate(homes) if i != robot]
-        room = _cell_distances(area.cells, others)
+        room = grid_distances(area.cells, others)
         assert room[target] > room[homes[robot]]
 
 
@@ -173,11 +156,11 @@ def test_spread_seeds_keep_distant_starts_and_fill_farthest_point(
     assert all(area.cells[s] for s in seeds)
     kept: list[tuple[int, int]] = []
     for home in homes:  # oracle: the greedy rule on breadth-first cell distances
-        if all(_cell_distances(area.cells, [other])[home] >= spacing for other in kept):
+        if all(grid_distances(area.cells, [other])[home] >= spacing for other in kept):
             kept.append(home)
     assert seeds[: len(kept)] == kept
     for i in range(len(kept), len(seeds)):  # each filler is a farthest cell from those before
-        room = _cell_distances(area.cells, seeds[:i])
+        room = grid_distances(area.cells, seeds[:i])
         assert room[seeds[i]] > 0
         open_cells = [c for c in room if c not in homes and not _is_cut(area.cells, c)
                       and room[c] > 0]
@@ -197,7 +180,7 @@ def test_entry_routes_are_shortest_walks_into_distinct_regions(
     homes = {(r // 2, c // 2) for r, c in starts}
     walks = Walks(area)
     for robot, start in enumerate(starts):  # distances against the breadth-first oracle
-        reach = _cell_distances(area.sub_cells, [start])
+        reach = grid_distances(area.sub_cells, [start])
         w = area.sub_cells.shape[1]
         assert all(walks.table[robot, r * w + c] == d for (r, c), d in reach.items())
     routes = entry_routes(area, state, walks)
@@ -211,7 +194,7 @@ def test_entry_routes_are_shortest_walks_into_distinct_regions(
         assert owner >= 0  # a whole cell of the region the robot was given
         entries = [s for u in state.whole[owner] if state.cell(u) not in homes
                    for s in sub_cells_of(state.cell(u))]
-        reach = _cell_distances(area.sub_cells, [starts[robot]])
+        reach = grid_distances(area.sub_cells, [starts[robot]])
         assert len(route) - 1 == min(reach[s] for s in entries)
         ends.append(owner)
     assert len(set(ends)) == len(ends)

@@ -30,7 +30,7 @@ from bus.faults import ENV as FAULTS_ENV
 from deploy.chaos.inject import Injector, RouterProcess
 from deploy.chaos.schedule import Trial
 from deploy.fleet import mstc_argv
-from deploy.settings import KillOrder
+from deploy.settings import NOT_CARRIED_OUT, KillOrder
 from planner.maps import resolve_world
 
 TRIAL_TIMEOUT_S = 120.0
@@ -202,9 +202,6 @@ def judge(trial: Trial, workdir: Path, code: int | None, wall: float,
     return outcome
 
 
-LATE_ORDERS = "not carried out (the mission ended first): "  # mstc up's line (deploy/launch.py)
-
-
 def ordered_deaths(trial: Trial, up_log: str) -> list[str]:
     """What ``mstc up`` says of the deaths it was told to order (Fault.by_coverage): done
     (with the coverage it was done at) or not carried out, in the campaign's words."""
@@ -218,7 +215,7 @@ def ordered_deaths(trial: Trial, up_log: str) -> list[str]:
         done = next((line for line in lines if f"{order}: done" in line), None)
         if done is not None:
             out.append(f"{fault.describe()}: done{done.split(': done', 1)[1]}")
-        elif any(line.strip().startswith(LATE_ORDERS) and order in line for line in lines):
+        elif any(line.strip().startswith(NOT_CARRIED_OUT) and order in line for line in lines):
             out.append(f"{fault.describe()}: not carried out (the mission ended first)")
         else:
             out.append(f"{fault.describe()}: not carried out (mstc up does not say it was)")

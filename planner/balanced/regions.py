@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterator, Sequence
 
-from planner.balanced.assign import assigned_partition, reassigned
+from planner.balanced.assign import MakePartition, assigned_partition, reassigned
 from planner.balanced.balance import balance
 from planner.balanced.growth import grow, seed_regions, unclaimed
 from planner.balanced.pullback import pulled_back_routes
@@ -107,20 +107,22 @@ def plan_regions(area: WorkArea, *, seed: int = 0
         again = _partition_state(area, seed, starts, offsets)
         if again is not None and max(again.load) < max(best.load):
             best, best_routes = again, routes
+    def make(starts: Sequence[SubCell], offsets: Sequence[int] | None
+             ) -> PartitionState | None:
+        return _partition_state(area, seed, starts, offsets)
+
     if max(best.load) > goal:
-        assigned = assigned_partition(
-            area, lambda starts, offsets: _partition_state(area, seed, starts, offsets), goal,
-            max(best.load))
+        assigned = assigned_partition(area, make, goal, max(best.load))
         if assigned is not None and max(assigned[0].load) < max(best.load):
             best, best_routes = assigned
     if max(best.load) > goal:
-        best, best_routes = _reinforced(area, seed, goal, best, best_routes)
+        best, best_routes = _reinforced(area, make, goal, best, best_routes)
     if max(best.load) > goal and best_routes:
         best, best_routes = _pulled_back(area, seed, best, best_routes)
     return best.to_partition(best.transfers), best_routes
 
 
-def _reinforced(area: WorkArea, seed: int, goal: int, state: PartitionState,
+def _reinforced(area: WorkArea, make: MakePartition, goal: int, state: PartitionState,
                 routes: dict[int, tuple[SubCell, ...]]
                 ) -> tuple[PartitionState, dict[int, tuple[SubCell, ...]]]:
     """Robots sent to the most loaded regions (reinforce.py); then, with fewer than
@@ -128,10 +130,6 @@ def _reinforced(area: WorkArea, seed: int, goal: int, state: PartitionState,
     (assign.reassigned: the walks in change with the regions), reinforced once more if
     that was a step forward (reinforce.score). Kept only if the largest load is lower than
     ``state``'s: walks are taken only when they pay."""
-    def make(starts: Sequence[SubCell], offsets: Sequence[int] | None
-             ) -> PartitionState | None:
-        return _partition_state(area, seed, starts, offsets)
-
     best = reinforced(area, state, routes, goal, make)
     if max(best[0].load) > goal:
         again = reassigned(area, make, goal, best[0])

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+from planner.balanced.assign import UNREACHABLE
 from planner.balanced.relocate import cell_distances, sub_cell_route
 from planner.balanced.state import PartitionState, articulation_points
 from planner.geometry import cell_of, sub_cells_of
@@ -32,7 +33,6 @@ MAX_PARTITIONS = 12  # partitions made here at most (0.05-0.15 s each at k = 30)
 # Robot-partitions to spend (a partition costs about k times more on large maps): all 12
 # up to k = 30, 3 at k = 100, 1 at k = 300.
 BUDGET = 360
-_UNREACHED = 1 << 30
 
 
 def reinforced(area: WorkArea, state: PartitionState, routes: Routes, goal: int,
@@ -59,7 +59,7 @@ def reinforced(area: WorkArea, state: PartitionState, routes: Routes, goal: int,
         average = sum(best.load) / k
         movers = sorted((r for r in range(k) if best.load[r] <= average
                          and (r, target) not in tried),
-                        key=lambda r: (near.get(best.flat(cell_of(area.starts[r])), _UNREACHED),
+                        key=lambda r: (near.get(best.flat(cell_of(area.starts[r])), UNREACHABLE),
                                        r))[:MOVERS]
         found = None
         for robot in movers:
