@@ -16,15 +16,8 @@ from planner.grid import WorkArea, expand, work_area
 from planner.invariants import check_path_moves
 from planner.maps import resolve_world
 from planner.offline import rebalance as rebalance_module
-from planner.offline.rebalance import (
-    _FAR,
-    NEAR,
-    RECOVERIES,
-    Grid,
-    Survivor,
-    plan_order,
-    rebalance,
-)
+from planner.offline.rebalance import RECOVERIES, Survivor, plan_order, rebalance
+from planner.offline.shortest import FAR, NEAR, Grid
 from planner.placement import random_starts
 from planner.trees import build_tree
 from planner.types import Cycle, OccupancyGrid, Plan
@@ -168,7 +161,7 @@ def masked(seed: int) -> Cycle:
 
 @pytest.mark.slow  # over 4 s (the quick loop stays near a minute)
 def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
-    """Grid searches a window round two near places first (planner.offline.rebalance.Grid).
+    """Grid searches a window round two near places first (planner.offline.shortest.Grid).
     From two sources of one winding grid (seed 2) to every place within NEAR: every
     distance equals the whole-grid search's, every path is that long, a walk of 4-adjacent
     moves, and it goes round a sub-cell avoided when it can. Source 642 has places the
@@ -180,11 +173,11 @@ def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
         ra, ca = cycle.at(a)
         for b in range(cycle.n):
             rb, cb = cycle.at(b)
-            if abs(ra - rb) + abs(ca - cb) > NEAR or whole[rb, cb] >= _FAR:
+            if abs(ra - rb) + abs(ca - cb) > NEAR or whole[rb, cb] >= FAR:
                 continue
             box, _ = searcher._window(a, b)
             inside = searcher._bfs(a, frozenset(), box)[rb - box[0], cb - box[2]]
-            window_alone_wrong += bool(inside < _FAR and inside != whole[rb, cb])
+            window_alone_wrong += bool(inside < FAR and inside != whole[rb, cb])
             assert Grid(cycle).distance(a, b) == whole[rb, cb]  # fresh: nothing cached
             path = searcher.path(a, b)
             assert len(path) == whole[rb, cb] and (not path or path[-1] == b)
@@ -194,6 +187,6 @@ def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
                 around = Grid(cycle).from_source(a, avoid)
                 detour = searcher.path(a, b, avoid)
                 check_path_moves([cycle.at(i) for i in (a, *detour)])
-                if around[rb, cb] < _FAR:
+                if around[rb, cb] < FAR:
                     assert len(detour) == around[rb, cb] and not avoid & set(detour)
     assert window_alone_wrong >= 3

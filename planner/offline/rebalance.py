@@ -12,8 +12,14 @@ inputs computes the same re-plan; a piece goes to exactly one survivor, so no su
 owned by two live robots. A later death re-plans again: the pieces of the newly dead are
 orphans like the rest of its route.
 
+Beside that re-plan three others are made and the one that finishes first kept: the whole
+uncovered work cut anew in the plan's order or along the cycle, and balanced regions of it
+grown from where the survivors stand (planner.balanced.regrow), whose robots next to the
+orphans take them and leave their own far work to their neighbours.
+
 Places are cycle indices of ``cycle`` (the key space of the offline machines); the walks
-between pieces and to them are shortest paths over the cycle's sub-cells.
+between pieces and to them are shortest paths over the cycle's sub-cells
+(planner.offline.shortest).
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from typing import Literal
 
 import numpy as np
 
+from planner.offline.shortest import FAR, Grid
 from planner.stretches import Reach
 from planner.types import BoolArray, Cycle, IntArray, Plan
 
@@ -38,8 +45,14 @@ DEFAULT_RECOVERY: Recovery = "rebalance"
 MAX_TAKERS = 12
 REFINE_ROUNDS = 24
 GREEDY_DEPTH = 2  # picks the re-plan's greedy looks ahead (at most MAX_TAKERS robots)
-_FAR = 1 << 40
-NEAR = 32  # places at most this far apart (manhattan) are searched in a window first
+# The regrown regions: each partition after the first corrects the sizes by the work each
+# region of the last one really held (half-covered cells count whole in the partitioner).
+# One death on office, mean over 18: 1.266 with one, 1.248 two, 1.237 three, 1.234 four
+# (docs/balanced.md).
+REGROW_PASSES = 3
+# The regions are grown only on areas up to this many sub-cells: a partition of 45 000
+# sub-cells at k = 100 costs seconds of CPU on every survivor at once.
+REGROW_MAX_SUB_CELLS = 12_000
 
 
 @dataclass(frozen=True)
@@ -53,121 +66,6 @@ class Survivor:
     @property
     def end(self) -> int:
         return self.route[-1] if self.route else self.position
-
-
-class Grid:
-    """Shortest paths over the cycle's sub-cells (breadth-first, whole-array steps), in
-    cycle-index space; distance maps cached per source and sub-cells avoided.
-
-    Most searches are between places a few moves apart (the gaps of an order of uncovered
-    sub-cells, the steps of a walk along a piece); those search a window round the two
-    places first. A path that leaves the window (the pair's bounding box grown by
-    ``margin`` on every side) is longer than manhattan + 2 margin + 1, so a path found
-    inside it no longer than that is a shortest one; otherwise, and for places more than
-    NEAR apart, the whole grid is searched (and that map kept).
-    On a 45 000 sub-cell map this took a re-plan at k = 100 from about 60 s to 6-7 s.
-    """
-
-    def __init__(self, cycle: Cycle) -> None:
-        self.cycle = cycle
-        self.free: BoolArray = cycle.index >= 0
-        self._dist: dict[tuple[int, frozenset[int]], IntArray] = {}
-        self._pairs: dict[tuple[int, int], int] = {}  # distances found in a window
-
-    def from_source(self, source: int, avoid: frozenset[int] = frozenset()) -> IntArray:
-        """Moves from ``source`` to each sub-cell (grid-shaped; _FAR where unreachable)
-        around the cycle indices ``avoid``."""
-        key = (source, avoid)
-        if key not in self._dist:
-            self._dist[key] = self._bfs(source, avoid, self._everything())
-        return self._dist[key]
-
-    def _everything(self) -> tuple[int, int, int, int]:
-        return 0, self.free.shape[0], 0, self.free.shape[1]
-
-    def _window(self, a: int, b: int) -> tuple[tuple[int, int, int, int], int]:
-        """The window round ``a`` and ``b`` (rows r0:r1, columns c0:c1) and the longest
-        path inside it that is surely a shortest one."""
-        (ra, ca), (rb, cb) = self.cycle.at(a), self.cycle.at(b)
-        manhattan = abs(ra - rb) + abs(ca - cb)
-        margin = max(manhattan, 4)
-        h, w = self.free.shape
-        box = (max(min(ra, rb) - margin, 0), min(max(ra, rb) + margin + 1, h),
-               max(min(ca, cb) - margin, 0), min(max(ca, cb) + margin + 1, w))
-        return box, manhattan + 2 * margin + 1
-
-    def _bfs(self, source: int, avoid: frozenset[int],
-             box: tuple[int, int, int, int]) -> IntArray:
-        r0, r1, c0, c1 = box
-        open_ = self.free[r0:r1, c0:c1].copy()
-        for index in avoid:
-            r, c = self.cycle.at(index)
-            if r0 <= r < r1 and c0 <= c < c1:
-                open_[r - r0, c - c0] = False
-        dist = np.full(open_.shape, _FAR, dtype=np.int64)
-        frontier = np.zeros(open_.shape, dtype=bool)
-        r, c = self.cycle.at(source)
-        frontier[r - r0, c - c0] = True
-        dist[frontier] = 0
-        step = 0
-        while frontier.any():
-            step += 1
-            grown = np.zeros_like(frontier)
-            grown[1:, :] |= frontier[:-1, :]
-            grown[:-1, :] |= frontier[1:, :]
-            grown[:, 1:] |= frontier[:, :-1]
-            grown[:, :-1] |= frontier[:, 1:]
-            frontier = grown & open_ & (dist == _FAR)
-            dist[frontier] = step
-        return dist
-
-    def distance(self, a: int, b: int) -> int:
-        ra, ca = self.cycle.at(a)
-        rb, cb = self.cycle.at(b)
-        if abs(ra - rb) + abs(ca - cb) <= 1:
-            return abs(ra - rb) + abs(ca - cb)
-        nothing: frozenset[int] = frozenset()
-        if (a, nothing) in self._dist:  # a map already made serves (distances are symmetric)
-            return int(self._dist[a, nothing][rb, cb])
-        if (b, nothing) in self._dist:
-            return int(self._dist[b, nothing][ra, ca])
-        pair = (min(a, b), max(a, b))
-        if pair in self._pairs:
-            return self._pairs[pair]
-        if abs(ra - rb) + abs(ca - cb) <= NEAR:
-            box, sure = self._window(a, b)
-            near = int(self._bfs(a, frozenset(), box)[rb - box[0], cb - box[2]])
-            if near <= sure:
-                self._pairs[pair] = near
-                return near
-        return int(self.from_source(a)[rb, cb])
-
-    def path(self, a: int, b: int, avoid: frozenset[int] = frozenset()) -> list[int]:
-        """Cycle indices after ``a`` up to and including ``b`` on a shortest path, around
-        ``avoid`` where a way around exists (ties: up, right, down, left from ``b``)."""
-        if a == b:
-            return []
-        if self.distance(a, b) == 1:
-            return [b]
-        (ra, ca), (rb, cb) = self.cycle.at(a), self.cycle.at(b)
-        box, sure = self._window(a, b)
-        far = abs(ra - rb) + abs(ca - cb) > NEAR
-        dist = self.from_source(a, avoid - {b}) if far else self._bfs(a, avoid - {b}, box)
-        if far or dist[rb - box[0], cb - box[2]] > sure:
-            box = self._everything()
-            dist = self.from_source(a, avoid - {b})
-            if dist[rb, cb] >= _FAR:
-                dist = self.from_source(a)
-        r0, c0 = box[0], box[2]
-        h, w = dist.shape
-        back = [(rb - r0, cb - c0)]
-        while dist[back[-1]] > 0:
-            r, c = back[-1]
-            d = dist[r, c]
-            back.append(next((nr, nc) for nr, nc in ((r - 1, c), (r, c + 1), (r + 1, c),
-                                                     (r, c - 1))
-                             if 0 <= nr < h and 0 <= nc < w and dist[nr, nc] == d - 1))
-        return [self.cycle.position((r + r0, c + c0)) for r, c in back[-2::-1]]
 
 
 def plan_order(plan: Plan) -> IntArray:
@@ -223,10 +121,11 @@ def rebalance(cycle: Cycle, covered: BoolArray, survivors: Sequence[Survivor],
               rank: IntArray) -> Replan:
     """Each survivor's new route (cycle indices to walk from where it stands).
 
-    Two re-plans are compared and the one that finishes first kept (the first on a tie):
+    The re-plans are compared and the one that finishes first kept (the first on a tie):
     each survivor keeps its route and some append a piece of the orphaned work; or all the
     uncovered work, the survivors' own included, is cut anew (a survivor far from the dead
-    robot's region then takes over part of a nearer survivor's). ``covered`` is per cycle
+    robot's region then takes over part of a nearer survivor's); or it is partitioned anew
+    into regions grown from the survivors (:func:`_regrown`). ``covered`` is per cycle
     index, ``rank`` the order of the work (:func:`plan_order`). Survivors are taken in
     robot-id order whatever order they come in, so the result depends only on the inputs.
     """
@@ -241,9 +140,52 @@ def rebalance(cycle: Cycle, covered: BoolArray, survivors: Sequence[Survivor],
     resplit = _share(grid, covered, everything, survivors, keep=False)
     along = _share(grid, covered, _ring_order(uncovered, cycle.n), survivors, keep=False)
     options = [o for o in (appended, resplit, along) if o is not None]
+    if options and 0 < cycle.n <= REGROW_MAX_SUB_CELLS:
+        options.extend(_regrown(grid, covered, survivors))
     if not options:
         return kept
     return min(options, key=lambda o: (o[0].finish, o[0].total))[1]
+
+
+def _regrown(grid: Grid, covered: BoolArray, survivors: list[Survivor]
+             ) -> list[tuple[_Split, Replan]]:
+    """Regions of the uncovered work grown from the survivors (planner.balanced.regrow),
+    each walked in its own order: the best of REGROW_PASSES partitions, or none when no
+    such partition exists."""
+    # Imported here, not at the top: every offline agent imports this module, and only a
+    # re-plan after a death needs the balanced partitioner.
+    from planner.balanced.regrow import regrown_work
+
+    positions = [s.position for s in survivors]
+    offsets: list[int] | None = None
+    best: tuple[_Split, Replan] | None = None
+    for _ in range(REGROW_PASSES):
+        found = regrown_work(grid.cycle, covered, positions, offsets)
+        if found is None:
+            break
+        routes = _routes_along(grid, survivors, found.work)
+        lengths = [len(routes[s.robot]) for s in survivors]
+        split = _Split(max(lengths), sum(lengths), (), ())
+        if best is None or (split.finish, split.total) < (best[0].finish, best[0].total):
+            owner = {i: s.robot for s, work in zip(survivors, found.work, strict=True)
+                     for i in work}
+            best = (split, Replan(routes, owner))
+        gaps = [length - size for length, size in zip(lengths, found.sizes, strict=True)]
+        corrected = [g - min(gaps) for g in gaps]
+        if corrected == offsets:  # the same partition again
+            break
+        offsets = corrected
+    return [] if best is None else [best]
+
+
+def _routes_along(grid: Grid, survivors: list[Survivor], works: Sequence[Sequence[int]]
+                  ) -> dict[int, tuple[int, ...]]:
+    """Each survivor's walk from where it stands along its work, around the places where
+    the others stop (a robot parked there for good would block the way)."""
+    stops = [work[-1] if work else s.position for s, work in zip(survivors, works, strict=True)]
+    return {s.robot: tuple(grid.walk(s.position, work,
+                                     frozenset(stops[:i] + stops[i + 1:])))
+            for i, (s, work) in enumerate(zip(survivors, works, strict=True))}
 
 
 def _owners(covered: BoolArray, survivors: Sequence[Survivor]) -> dict[int, int]:
@@ -307,7 +249,7 @@ def _share(grid: Grid, covered: BoolArray, work: list[int], survivors: list[Surv
     for taker, piece in oriented.items():
         avoid = frozenset(stop for i, stop in stops.items() if i != taker)
         s = survivors[taker]
-        routes[s.robot] = routes[s.robot] + tuple(_walk(grid, ends[taker], piece, avoid))
+        routes[s.robot] = routes[s.robot] + tuple(grid.walk(ends[taker], piece, avoid))
     return best, Replan(routes, owner)
 
 
@@ -402,19 +344,9 @@ def _bottleneck(costs: IntArray) -> tuple[list[int], IntArray]:
             high = mid
         else:
             low = mid + 1
-    allowed = np.where(costs <= values[low], costs, _FAR)
+    allowed = np.where(costs <= values[low], costs, FAR)
     r, c = linear_sum_assignment(allowed.T)  # rows are pieces here
     row_of = [0] * cols_n
     for piece, survivor in zip(r.tolist(), c.tolist(), strict=True):
         row_of[piece] = survivor
     return row_of, np.array([costs[row_of[j], j] for j in range(cols_n)], dtype=np.int64)
-
-
-def _walk(grid: Grid, start: int, piece: Sequence[int], avoid: frozenset[int]) -> list[int]:
-    """From ``start`` along ``piece`` in its order, bridging gaps around ``avoid``."""
-    out: list[int] = []
-    at = start
-    for place in piece:
-        out.extend(grid.path(at, place, avoid))
-        at = place
-    return out
