@@ -190,3 +190,23 @@ def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
                 if around[rb, cb] < FAR:
                     assert len(detour) == around[rb, cb] and not avoid & set(detour)
     assert window_alone_wrong >= 3
+
+
+def test_with_nothing_orphaned_the_routes_are_kept_when_no_cut_is_shorter() -> None:
+    """A robot that dies after its own route leaves no orphans. Cutting all the work anew
+    among the nearest MAX_TAKERS survivors is then no re-plan to take blindly: 16
+    survivors of a balanced plan on office at their starts (the dead robot's region
+    covered) would finish later than their own routes (measured: 69 against 54 moves)."""
+    grid = resolve_world("office")
+    area = work_area(grid, random_starts(grid, 17, 4))
+    plan = make("balanced", area, 4)
+    cycle = plan.cycle
+    covered = np.zeros(cycle.n, dtype=bool)
+    survivors = []
+    for rp in plan.robots[:-1]:  # the last robot: dead with nothing left to do
+        walk = [cycle.position(s) for s in rp.path]
+        covered[walk[0]] = True
+        survivors.append(Survivor(rp.robot, walk[0], tuple(walk[1:])))
+    covered[[cycle.position(s) for s in plan.robots[-1].path]] = True
+    replan = rebalance(cycle, covered, survivors, plan_order(plan))
+    assert replan.makespan <= max(len(s.route) for s in survivors)

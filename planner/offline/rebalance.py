@@ -134,7 +134,11 @@ def rebalance(cycle: Cycle, covered: BoolArray, survivors: Sequence[Survivor],
     if not survivors:
         return kept
     grid = Grid(cycle)
-    appended = _share(grid, covered, orphans(covered, survivors, rank), survivors, keep=True)
+    left = orphans(covered, survivors, rank)
+    appended = _share(grid, covered, left, survivors, keep=True)
+    if not left:  # nothing orphaned (the dead robot had finished): keeping is a re-plan too
+        lengths = [len(s.route) for s in survivors]
+        appended = (_Split(max(lengths), sum(lengths), (), ()), kept)
     uncovered = np.flatnonzero(~covered)
     everything = [int(i) for i in uncovered[np.argsort(rank[uncovered], kind="stable")]]
     resplit = _share(grid, covered, everything, survivors, keep=False)
