@@ -16,6 +16,27 @@ import numpy as np
 from planner.errors import DisconnectedRobotsError, EmptyMapError, RobotPlacementError
 from planner.types import BoolArray, CoarseGrid, IntArray, OccupancyGrid, SubCell
 
+FAR = 1 << 40  # the distance of a cell no walk reaches
+
+
+def breadth_first(open_cells: BoolArray, sources: BoolArray) -> IntArray:
+    """Moves from the nearest of ``sources`` to every cell of ``open_cells`` over
+    4-adjacent open cells (FAR where none leads), one whole-array step per move."""
+    dist = np.full(open_cells.shape, FAR, dtype=np.int64)
+    frontier = np.asarray(sources, dtype=bool).copy()
+    dist[frontier] = 0
+    step = 0
+    while frontier.any():
+        step += 1
+        grown = np.zeros_like(frontier)
+        grown[1:, :] |= frontier[:-1, :]
+        grown[:-1, :] |= frontier[1:, :]
+        grown[:, 1:] |= frontier[:, :-1]
+        grown[:, :-1] |= frontier[:, 1:]
+        frontier = grown & open_cells & (dist == FAR)
+        dist[frontier] = step
+    return dist
+
 
 def coarsen(grid: OccupancyGrid) -> CoarseGrid:
     """Free coarse cells: a cell is free only if its 2 x 2 sub-cells are all free.

@@ -12,12 +12,12 @@ import pytest
 
 from planner.algorithms import algorithm
 from planner.geometry import cell_of
-from planner.grid import WorkArea, expand, work_area
+from planner.grid import FAR, WorkArea, expand, work_area
 from planner.invariants import check_path_moves
 from planner.maps import resolve_world
 from planner.offline import rebalance as rebalance_module
 from planner.offline.rebalance import RECOVERIES, Survivor, plan_order, rebalance
-from planner.offline.shortest import FAR, NEAR, Grid
+from planner.offline.shortest import NEAR, Grid
 from planner.placement import random_starts
 from planner.trees import build_tree
 from planner.types import Cycle, OccupancyGrid, Plan

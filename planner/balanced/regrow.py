@@ -25,7 +25,7 @@ import numpy as np
 from planner.balanced.coverage import region_path
 from planner.balanced.regions import partition
 from planner.errors import RobotPlacementError
-from planner.grid import expand, label_components, work_area
+from planner.grid import FAR, breadth_first, expand, label_components, work_area
 from planner.types import BoolArray, Cycle, IntArray, OccupancyGrid
 
 
@@ -90,25 +90,11 @@ def _remaining_cells(cycle: Cycle, covered: BoolArray, positions: Sequence[int])
 
 def _join_nearest(cells: BoolArray, labels: IntArray, on_cycle: BoolArray) -> None:
     """Add to ``cells`` a shortest chain of ``on_cycle`` cells from component 1 to the
-    nearest other component (breadth-first, whole-array steps; ties by cell order)."""
-    far = np.iinfo(np.int64).max
-    dist = np.where(labels == 1, 0, far)
-    frontier = labels == 1
-    step = 0
-    while True:
-        step += 1
-        grown = np.zeros_like(frontier)
-        grown[1:, :] |= frontier[:-1, :]
-        grown[:-1, :] |= frontier[1:, :]
-        grown[:, 1:] |= frontier[:, :-1]
-        grown[:, :-1] |= frontier[:, 1:]
-        frontier = grown & on_cycle & (dist == far)
-        dist[frontier] = step
-        reached = np.argwhere(frontier & (labels > 1))
-        if reached.size:
-            break
-        assert frontier.any(), "the cells of one cycle form one component"
-    r, c = (int(x) for x in reached[0])
+    nearest other component (ties by cell order)."""
+    dist = breadth_first(on_cycle, labels == 1)
+    others = np.where(labels > 1, dist, FAR)
+    r, c = (int(x) for x in np.unravel_index(int(np.argmin(others)), others.shape))
+    assert others[r, c] < FAR, "the cells of one cycle form one component"
     while dist[r, c] > 1:
         r, c = next((nr, nc) for nr, nc in ((r - 1, c), (r, c + 1), (r + 1, c), (r, c - 1))
                     if 0 <= nr < dist.shape[0] and 0 <= nc < dist.shape[1]

@@ -31,7 +31,8 @@ from typing import Literal
 
 import numpy as np
 
-from planner.offline.shortest import FAR, Grid
+from planner.grid import FAR
+from planner.offline.shortest import Grid
 from planner.stretches import Reach
 from planner.types import BoolArray, Cycle, IntArray, Plan
 

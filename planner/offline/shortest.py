@@ -7,9 +7,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from planner.grid import FAR, breadth_first
 from planner.types import BoolArray, Cycle, IntArray
 
-FAR = 1 << 40  # the distance to a place no walk reaches
 NEAR = 32  # places at most this far apart (manhattan) are searched in a window first
 
 
@@ -62,22 +62,10 @@ class Grid:
             r, c = self.cycle.at(index)
             if r0 <= r < r1 and c0 <= c < c1:
                 open_[r - r0, c - c0] = False
-        dist = np.full(open_.shape, FAR, dtype=np.int64)
-        frontier = np.zeros(open_.shape, dtype=bool)
+        sources = np.zeros(open_.shape, dtype=bool)
         r, c = self.cycle.at(source)
-        frontier[r - r0, c - c0] = True
-        dist[frontier] = 0
-        step = 0
-        while frontier.any():
-            step += 1
-            grown = np.zeros_like(frontier)
-            grown[1:, :] |= frontier[:-1, :]
-            grown[:-1, :] |= frontier[1:, :]
-            grown[:, 1:] |= frontier[:, :-1]
-            grown[:, :-1] |= frontier[:, 1:]
-            frontier = grown & open_ & (dist == FAR)
-            dist[frontier] = step
-        return dist
+        sources[r - r0, c - c0] = True
+        return breadth_first(open_, sources)
 
     def distance(self, a: int, b: int) -> int:
         ra, ca = self.cycle.at(a)
