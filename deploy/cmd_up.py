@@ -154,7 +154,7 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
         run_dir=Path(args.run_dir or default_run_dir(mission)),
         listen=args.listen, connect=args.connect, lease_ms=timing.lease_ms,
         dead_after=timing.dead_after,
-        stall_timeout=stall_timeout(args.time_scale, args.stall_timeout),
+        stall_timeout=stall_timeout(args.time_scale, args.stall_timeout, args.robots),
         start_timeout=timing.start_timeout, linger=args.linger,
         timing_args=tuple(timing.agent_args()), booting=timing.booting,
         agent_nice=timing.agent_nice,

@@ -87,6 +87,11 @@ BOOT_SLACK = 4
 # without covering anything new; the default stall timeout allows for it at any time scale.
 STALL_MOVES = 100
 MOVE_SIM_S = 2.5  # forward 1.93 s plus a share of turns (docs/simhw.md)
+# After a death every survivor of a crowded fleet computes the same re-plan at once, and the
+# fleet covers nothing meanwhile: 40 agents on 2 cores took 53 s from the death known to the
+# first re-plan (docs/operations.md), so a crowded fleet's stall timeout allows this much
+# per agent per core beyond the default.
+REPLAN_S_PER_AGENT = 3.0
 
 _KILL_RE = re.compile(
     r"^(?P<robot>\d+)@(?:(?:progress=)?(?P<pct>\d+(?:\.\d+)?)%|progress=(?P<pct2>\d+(?:\.\d+)?)"
@@ -227,13 +232,18 @@ class UpSettings:
         return self.connect is None
 
 
-def stall_timeout(time_scale: float, given: float | None = None) -> float:
-    """--stall-timeout, by default long enough for STALL_MOVES moves at ``time_scale``."""
+def stall_timeout(time_scale: float, given: float | None = None, robots: int = 1,
+                  cores: int | None = None) -> float:
+    """--stall-timeout, by default long enough for STALL_MOVES moves at ``time_scale`` and,
+    in a crowded fleet of ``robots`` on ``cores``, for the survivors' re-plan after a death."""
     if given is not None:
         return float(given)
+    base = DEFAULT_STALL_S
+    if crowded(robots, cores):
+        base += REPLAN_S_PER_AGENT * robots / _cores(cores)
     if time_scale == 0 or math.isinf(time_scale):
-        return DEFAULT_STALL_S
-    return DEFAULT_STALL_S + STALL_MOVES * MOVE_SIM_S / time_scale
+        return base
+    return base + STALL_MOVES * MOVE_SIM_S / time_scale
 
 
 def crowded(robots: int, cores: int | None = None) -> bool:
