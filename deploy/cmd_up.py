@@ -34,6 +34,7 @@ from deploy.settings import (
     DEFAULT_DEAD_AFTER_S,
     DEFAULT_STALL_S,
     DEFAULT_TIME_SCALE,
+    REPLAN_S_PER_AGENT,
     STALL_MOVES,
     MissionSetup,
     UpSettings,
@@ -99,7 +100,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"the fleet: docs/operations.md, 'Fleet scale')")
     parser.add_argument("--stall-timeout", type=positive, default=None, metavar="S",
                         help=f"fail if coverage does not grow for S wall seconds (default "
-                             f"{DEFAULT_STALL_S:g} s plus the wall time of {STALL_MOVES} moves)")
+                             f"{DEFAULT_STALL_S:g} s plus the wall time of {STALL_MOVES} moves, "
+                             f"and in a crowded fleet {REPLAN_S_PER_AGENT:g} s per agent per "
+                             "core for the re-plan after a death)")
     parser.add_argument("--start-timeout", type=positive, default=None, metavar="S",
                         help="fail if the agents are not all up after S wall seconds "
                              "(default 30 + 1 per robot; crowded fleets: their paced "
