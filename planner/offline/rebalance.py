@@ -137,22 +137,20 @@ def rebalance(cycle: Cycle, covered: BoolArray, survivors: Sequence[Survivor],
     grid = Grid(cycle)
     left = orphans(covered, survivors, rank)
     appended = _share(grid, covered, left, survivors, keep=True)
-    if not left:  # nothing orphaned (the dead robot had finished): keeping is a re-plan too
+    if appended is None:  # nothing orphaned (the dead robot had finished): keep the routes
         lengths = [len(s.route) for s in survivors]
         appended = (_Split(max(lengths), sum(lengths), (), ()), kept)
-    options: list[tuple[_Split, Replan] | None] = [appended]
+    options = [appended]
     if len(survivors) <= MAX_TAKERS:  # beyond, a cut of all the work leaves the rest idle
         uncovered = np.flatnonzero(~covered)
         everything = [int(i) for i in uncovered[np.argsort(rank[uncovered], kind="stable")]]
-        options.append(_share(grid, covered, everything, survivors, keep=False))
-        options.append(_share(grid, covered, _ring_order(uncovered, cycle.n), survivors,
-                              keep=False))
-    made = [o for o in options if o is not None]
-    if made and 0 < cycle.n <= REGROW_MAX_SUB_CELLS:
-        made.extend(_regrown(grid, covered, survivors))
-    if not made:
-        return kept
-    return min(made, key=lambda o: (o[0].finish, o[0].total))[1]
+        for order in (everything, _ring_order(uncovered, cycle.n)):
+            cut = _share(grid, covered, order, survivors, keep=False)
+            if cut is not None:
+                options.append(cut)
+    if 0 < cycle.n <= REGROW_MAX_SUB_CELLS:
+        options.extend(_regrown(grid, covered, survivors))
+    return min(options, key=lambda o: (o[0].finish, o[0].total))[1]
 
 
 def _regrown(grid: Grid, covered: BoolArray, survivors: list[Survivor]
