@@ -151,7 +151,7 @@ def main_half(args: argparse.Namespace) -> None:
 def main_replan_scale(spec: str, k: int) -> None:
     """CPU of one re-plan (planner.offline.rebalance) on a large map: robot 2 dies when
     every robot has walked 30 % and 60 % of its balanced plan (the agents each compute it)."""
-    from planner.offline.rebalance import Survivor, plan_order, rebalance
+    from planner.offline.rebalance import frozen_at, plan_order, rebalance
 
     grid = resolve_world(spec)
     area = work_area(grid, random_starts(grid, k, 1))
@@ -160,14 +160,8 @@ def main_replan_scale(spec: str, k: int) -> None:
     print(f"one re-plan on {spec}, k = {k}, n = {area.n} sub-cells, balanced plan of "
           f"{plan.makespan} moves")
     for fraction in (0.3, 0.6):
-        covered = np.zeros(cycle.n, dtype=bool)
-        survivors = []
-        for rp in plan.robots:
-            walk = [cycle.position(s) for s in rp.path]
-            done = int(len(walk) * fraction)
-            covered[walk[:done + 1]] = True
-            if rp.robot != 2:
-                survivors.append(Survivor(rp.robot, walk[done], tuple(walk[done + 1:])))
+        walked = {rp.robot: int(len(rp.path) * fraction) for rp in plan.robots}
+        covered, survivors = frozen_at(plan, walked, {2})
         started = time.process_time()
         replan = rebalance(cycle, covered, survivors, plan_order(plan))
         print(f"at {fraction:.0%}: re-plan makespan {replan.makespan} moves, "

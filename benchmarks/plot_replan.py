@@ -26,7 +26,7 @@ from planner.geometry import cell_of
 from planner.grid import work_area
 from planner.maps import resolve_world
 from planner.offline import rebalance as rebalance_module
-from planner.offline.rebalance import Replan, Survivor, orphans, plan_order, rebalance
+from planner.offline.rebalance import Replan, frozen_at, orphans, plan_order, rebalance
 from planner.placement import random_starts
 from planner.trees import build_tree
 from planner.types import BoolArray, Cycle, OccupancyGrid, Plan
@@ -41,19 +41,6 @@ def office_plan(seed: int) -> tuple[OccupancyGrid, Plan]:
     tree = build_tree(area.cells, "dfs", seed=seed, starts=[cell_of(s) for s in area.starts])
     plan: Plan = algorithm("balanced").load_plan()(area, tree, "balanced", seed)
     return grid, plan
-
-
-def at_death(plan: Plan, dead: int, step: int) -> tuple[BoolArray, list[Survivor]]:
-    cycle = plan.cycle
-    covered = np.zeros(cycle.n, dtype=bool)
-    survivors = []
-    for rp in plan.robots:
-        walk = [cycle.position(s) for s in rp.path]
-        covered[walk[:step + 1]] = True
-        if rp.robot != dead:
-            at = min(step, len(walk) - 1)
-            survivors.append(Survivor(rp.robot, walk[at], tuple(walk[at + 1:])))
-    return covered, survivors
 
 
 def draw(ax: Axes, grid: OccupancyGrid, cycle: Cycle, covered: BoolArray,
@@ -97,7 +84,7 @@ def main() -> None:
 
     grid, plan = office_plan(args.seed)
     step = int(args.coverage * plan.makespan)
-    covered, survivors = at_death(plan, args.dead, step)
+    covered, survivors = frozen_at(plan, {rp.robot: step for rp in plan.robots}, {args.dead})
     rank = plan_order(plan)
     with_regions = rebalance(plan.cycle, covered, survivors, rank)
     rebalance_module.REGROW_MAX_SUB_CELLS = 0

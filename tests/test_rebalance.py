@@ -16,7 +16,7 @@ from planner.grid import FAR, WorkArea, expand, work_area
 from planner.invariants import check_path_moves
 from planner.maps import resolve_world
 from planner.offline import rebalance as rebalance_module
-from planner.offline.rebalance import RECOVERIES, Survivor, plan_order, rebalance
+from planner.offline.rebalance import RECOVERIES, Survivor, frozen_at, plan_order, rebalance
 from planner.offline.shortest import NEAR, Grid
 from planner.placement import random_starts
 from planner.trees import build_tree
@@ -77,15 +77,8 @@ def snapshot(seed: int) -> tuple[Plan, np.ndarray, list[Survivor]]:
     """The balanced plan of a generated area at one robot's death, half-way through."""
     area = generated(seed, 5)
     plan = make("balanced", area, seed)
-    cycle = plan.cycle
-    covered = np.zeros(cycle.n, dtype=bool)
-    survivors = []
-    for rp in plan.robots:
-        walk = [cycle.position(s) for s in rp.path]
-        done = len(walk) // 2
-        covered[walk[:done + 1]] = True
-        if rp.robot != 2:
-            survivors.append(Survivor(rp.robot, walk[done], tuple(walk[done + 1:])))
+    covered, survivors = frozen_at(plan, {rp.robot: len(rp.path) // 2 for rp in plan.robots},
+                                   {2})
     return plan, covered, survivors
 
 

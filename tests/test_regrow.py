@@ -11,7 +11,7 @@ from planner.balanced.regrow import _remaining_cells, regrown_work
 from planner.cycle import stc_cycle
 from planner.grid import work_area
 from planner.maps import resolve_world
-from planner.offline.rebalance import Survivor, plan_order, rebalance
+from planner.offline.rebalance import frozen_at, plan_order, rebalance
 from planner.placement import random_starts
 from planner.trees import build_tree
 from planner.types import Cycle
@@ -67,15 +67,8 @@ def test_a_large_fleets_replan_shares_all_the_work_anew() -> None:
     grid = resolve_world("grid30x20")
     area = work_area(grid, random_starts(grid, 30, 1))
     plan = make("opt", area, 1)
-    cycle, step = plan.cycle, int(0.3 * plan.makespan)
-    covered = np.zeros(cycle.n, dtype=bool)
-    survivors = []
-    for rp in plan.robots:
-        walk = [cycle.position(s) for s in rp.path]
-        at = min(step, len(walk) - 1)
-        covered[walk[:at + 1]] = True
-        if rp.robot != 15:
-            survivors.append(Survivor(rp.robot, walk[at], tuple(walk[at + 1:])))
-    replan = rebalance(cycle, covered, survivors, plan_order(plan))
+    step = int(0.3 * plan.makespan)
+    covered, survivors = frozen_at(plan, {rp.robot: step for rp in plan.robots}, {15})
+    replan = rebalance(plan.cycle, covered, survivors, plan_order(plan))
     assert replan.makespan <= 0.6 * max(len(s.route) for s in survivors)
     assert set(replan.owner) == set(np.flatnonzero(~covered).tolist())

@@ -12,10 +12,11 @@ inputs computes the same re-plan; a piece goes to exactly one survivor, so no su
 owned by two live robots. A later death re-plans again: the pieces of the newly dead are
 orphans like the rest of its route.
 
-Beside that re-plan three others are made and the one that finishes first kept: the whole
-uncovered work cut anew in the plan's order or along the cycle, and balanced regions of it
-grown from where the survivors stand (planner.balanced.regrow), whose robots next to the
-orphans take them and leave their own far work to their neighbours.
+Beside that re-plan up to three others are made and the one that finishes first kept: the
+whole uncovered work cut anew in the plan's order or along the cycle (with at most
+MAX_TAKERS survivors), and balanced regions of it grown from where the survivors stand
+(planner.balanced.regrow), whose robots next to the orphans take them and leave their own
+far work to their neighbours.
 
 Places are cycle indices of ``cycle`` (the key space of the offline machines); the walks
 between pieces and to them are shortest paths over the cycle's sub-cells
@@ -24,7 +25,7 @@ between pieces and to them are shortest paths over the cycle's sub-cells
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from itertools import pairwise
 from typing import Literal
@@ -85,6 +86,24 @@ def plan_order(plan: Plan) -> IntArray:
     left = rank < 0  # only a malformed plan leaves any: keep them, in cycle order
     rank[left] = ranked + np.arange(int(left.sum()))
     return rank
+
+
+def frozen_at(plan: Plan, walked: Mapping[int, int], dead: Collection[int]
+              ) -> tuple[BoolArray, list[Survivor]]:
+    """What a re-plan starts from when each robot has walked ``walked[robot]`` moves of its
+    fault-free path (robots as points, deaths known at once): the covered cycle indices,
+    and every robot not in ``dead`` as a survivor. For benchmarks, figures and tests; a
+    fleet's comes from its robots' reports (agent.offline.replan)."""
+    cycle = plan.cycle
+    covered = np.zeros(cycle.n, dtype=bool)
+    survivors = []
+    for rp in plan.robots:
+        walk = [cycle.position(sub) for sub in rp.path]
+        at = min(walked[rp.robot], len(walk) - 1)
+        covered[walk[:at + 1]] = True
+        if rp.robot not in dead:
+            survivors.append(Survivor(rp.robot, walk[at], tuple(walk[at + 1:])))
+    return covered, survivors
 
 
 def orphans(covered: BoolArray, survivors: Sequence[Survivor], rank: IntArray) -> list[int]:
@@ -169,8 +188,9 @@ def _regrown(grid: Grid, covered: BoolArray, survivors: list[Survivor]
         found = regrown_work(grid.cycle, covered, positions, offsets)
         if found is None:
             break
-        routes = _routes_along(grid, survivors, found.work)
-        lengths = [len(routes[s.robot]) for s in survivors]
+        walks = _walks_around(grid, [s.position for s in survivors], found.work)
+        routes = {s.robot: walk for s, walk in zip(survivors, walks, strict=True)}
+        lengths = [len(walk) for walk in walks]
         split = _Split(max(lengths), sum(lengths), (), ())
         if best is None or (split.finish, split.total) < (best[0].finish, best[0].total):
             owner = {i: s.robot for s, work in zip(survivors, found.work, strict=True)
@@ -184,14 +204,14 @@ def _regrown(grid: Grid, covered: BoolArray, survivors: list[Survivor]
     return [] if best is None else [best]
 
 
-def _routes_along(grid: Grid, survivors: list[Survivor], works: Sequence[Sequence[int]]
-                  ) -> dict[int, tuple[int, ...]]:
-    """Each survivor's walk from where it stands along its work, around the places where
-    the others stop (a robot parked there for good would block the way)."""
-    stops = [work[-1] if work else s.position for s, work in zip(survivors, works, strict=True)]
-    return {s.robot: tuple(grid.walk(s.position, work,
-                                     frozenset(stops[:i] + stops[i + 1:])))
-            for i, (s, work) in enumerate(zip(survivors, works, strict=True))}
+def _walks_around(grid: Grid, starts: Sequence[int], works: Sequence[Sequence[int]]
+                  ) -> list[tuple[int, ...]]:
+    """Each robot's walk from ``starts[i]`` along ``works[i]``, around the places where the
+    others stop (the end of their work, or their start): a robot parked there for good
+    would block the way, and simhw refuses a body into a body."""
+    stops = [work[-1] if work else start for start, work in zip(starts, works, strict=True)]
+    return [tuple(grid.walk(start, work, frozenset(stops[:i] + stops[i + 1:])))
+            for i, (start, work) in enumerate(zip(starts, works, strict=True))]
 
 
 def _owners(covered: BoolArray, survivors: Sequence[Survivor]) -> dict[int, int]:
@@ -249,13 +269,10 @@ def _share(grid: Grid, covered: BoolArray, work: list[int], survivors: list[Surv
             piece = piece[::-1]
         oriented[taker] = piece
         owner.update((index, survivors[taker].robot) for index in piece)
-    # where each robot stops: the way to a piece goes around the others' stops, since a
-    # robot parked there for good would block it (simhw refuses a body into a body)
-    stops = {i: oriented[i][-1] if i in oriented else ends[i] for i in range(len(survivors))}
-    for taker, piece in oriented.items():
-        avoid = frozenset(stop for i, stop in stops.items() if i != taker)
+    walks = _walks_around(grid, ends, [oriented.get(i, []) for i in range(len(survivors))])
+    for taker in oriented:
         s = survivors[taker]
-        routes[s.robot] = routes[s.robot] + tuple(grid.walk(ends[taker], piece, avoid))
+        routes[s.robot] = routes[s.robot] + walks[taker]
     return best, Replan(routes, owner)
 
 
