@@ -55,10 +55,10 @@ REGROW_PASSES = 3
 # The regions are grown only on areas up to this many sub-cells: a partition of 45 000
 # sub-cells at k = 100 costs seconds of CPU on every survivor at once.
 REGROW_MAX_SUB_CELLS = 12_000
-# The re-plan chosen is refined (planner.offline.refine) with at most MAX_TAKERS survivors
-# on areas up to this size, and on small areas every option is, the best then kept: k/2
-# deaths on office, 20 seeds, 1.178 x the ideal unrefined, 1.131 with the chosen refined,
-# 1.123 with all (docs/balanced.md). A refinement costs 0.02-0.6 s of CPU at k <= 12.
+# The re-plan chosen is refined (planner.offline.refine) on areas up to this size, and on
+# small areas every option is, the best then kept: k/2 deaths on office, 20 seeds, 1.178 x
+# the ideal unrefined, 1.131 with the chosen refined, 1.123 with all (docs/balanced.md). A
+# refinement costs 0.02-0.6 s of CPU, at k = 6 as at k = 100.
 REFINE_MAX_SUB_CELLS = 12_000
 REFINE_ALL_MAX_SUB_CELLS = 3_000
 
@@ -176,7 +176,7 @@ def rebalance(cycle: Cycle, covered: BoolArray, survivors: Sequence[Survivor],
     if 0 < cycle.n <= REGROW_MAX_SUB_CELLS:
         options.extend(_regrown(grid, covered, survivors))
     options.sort(key=lambda o: (o[0].finish, o[0].total))  # stable: the first on a tie
-    if len(survivors) > MAX_TAKERS or cycle.n > REFINE_MAX_SUB_CELLS:
+    if cycle.n > REFINE_MAX_SUB_CELLS:
         return options[0][1]
     if cycle.n > REFINE_ALL_MAX_SUB_CELLS:
         return _refined(grid, covered, survivors, options[0][1])

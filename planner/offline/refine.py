@@ -33,7 +33,7 @@ MAX_MOVES = 64
 STRETCHES = 12  # a list is cut evenly into about this many stretches, and at its gaps
 MAX_CUTS = 24  # cut places per list at most (the widest gaps kept first)
 _CLIP = (1 << 31) - 1
-MAX_MAPS = 256  # distance rows kept between moves (n int32 each: 12 MB at 12 000 places)
+MAX_MAPS = 128  # distance rows kept between moves (n int32 each: 6 MB at 12 000 places)
 UNREACHABLE = 1 << 28  # moves to a place no walk reaches: four of them still fit _CLIP
 
 
