@@ -56,9 +56,10 @@ REGROW_PASSES = 3
 # sub-cells at k = 100 costs seconds of CPU on every survivor at once.
 REGROW_MAX_SUB_CELLS = 12_000
 # The re-plan chosen is refined (planner.offline.refine) on areas up to this size, and on
-# small areas every option is, the best then kept: k/2 deaths on office, 20 seeds, 1.178 x
-# the ideal unrefined, 1.131 with the chosen refined, 1.123 with all (docs/balanced.md). A
-# refinement costs 0.02-0.6 s of CPU, at k = 6 as at k = 100.
+# small areas with at most MAX_TAKERS survivors every option is, the best then kept: k/2
+# deaths on office, 20 seeds, 1.178 x the ideal unrefined, 1.131 with the chosen refined,
+# 1.123 with all (docs/balanced.md). A refinement costs 0.02-0.6 s of CPU, at k = 6 as at
+# k = 100; in a crowded fleet every survivor pays it at once, hence the chosen one only.
 REFINE_MAX_SUB_CELLS = 12_000
 REFINE_ALL_MAX_SUB_CELLS = 3_000
 
@@ -178,7 +179,7 @@ def rebalance(cycle: Cycle, covered: BoolArray, survivors: Sequence[Survivor],
     options.sort(key=lambda o: (o[0].finish, o[0].total))  # stable: the first on a tie
     if cycle.n > REFINE_MAX_SUB_CELLS:
         return options[0][1]
-    if cycle.n > REFINE_ALL_MAX_SUB_CELLS:
+    if cycle.n > REFINE_ALL_MAX_SUB_CELLS or len(survivors) > MAX_TAKERS:
         return _refined(grid, covered, survivors, options[0][1])
     polished = [_refined(grid, covered, survivors, replan) for _, replan in options]
     return min(polished, key=lambda r: (r.makespan, sum(map(len, r.routes.values()))))
@@ -203,6 +204,8 @@ def _refined(grid: Grid, covered: BoolArray, survivors: list[Survivor], chosen: 
         return chosen
     positions = [s.position for s in survivors]
     better = refined(grid, positions, works)
+    if better == works:
+        return chosen
     walks = _walks_around(grid, positions, better)
     lengths = [len(walk) for walk in walks]
     if (max(lengths), sum(lengths)) >= (chosen.makespan, sum(map(len, chosen.routes.values()))):
