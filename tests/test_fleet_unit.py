@@ -148,10 +148,10 @@ def test_default_stall_timeout_allows_100_moves_of_wall_time() -> None:
 
 def test_a_crowded_fleets_stall_timeout_allows_for_the_survivors_replan() -> None:
     assert stall_timeout(0.0, robots=12, cores=2) == 20.0  # not crowded: the default
-    assert stall_timeout(0.0, robots=40, cores=2) == pytest.approx(20.0 + 5.0 * 40 / 2)
-    assert stall_timeout(0.0, robots=100, cores=2) == pytest.approx(270.0)
+    assert stall_timeout(0.0, robots=40, cores=2) == pytest.approx(20.0 + 6.0 * 40 / 2)
+    assert stall_timeout(0.0, robots=100, cores=2) == pytest.approx(320.0)
     assert stall_timeout(0.0, robots=40, cores=8) == 20.0
-    assert stall_timeout(1.0, robots=40, cores=2) == pytest.approx(120.0 + 100 * 2.5)
+    assert stall_timeout(1.0, robots=40, cores=2) == pytest.approx(140.0 + 100 * 2.5)
     assert stall_timeout(0.0, given=30.0, robots=100, cores=2) == 30.0
 
 
