@@ -1,5 +1,5 @@
 """Draw one re-plan after a death: where the survivors stand and what is left, the re-plan
-without the regrown regions, and the re-plan with them (docs/balanced.md).
+without the regrown regions, with them, and refined (docs/balanced.md).
 
     .venv/bin/python benchmarks/plot_replan.py docs/img/replan_regrown.png
     .venv/bin/python benchmarks/plot_replan.py out.png --seed 1 --dead 0 --coverage 0.3
@@ -7,9 +7,11 @@ without the regrown regions, and the re-plan with them (docs/balanced.md).
 The fleet is the office world with 6 robots at seeded random starts and the balanced plan;
 robot ``--dead`` dies when every robot has walked ``--coverage`` of the plan's makespan.
 The state at the death is read off the plan (every robot at the same step of its path);
-both re-plans are planner.offline.rebalance's, the first with the regrown regions switched
-off (``REGROW_MAX_SUB_CELLS = 0``). A lighter sub-cell is covered; each survivor's route in
-its colour from where it stands (a dot); the dead robot's orphans are black.
+the re-plans are planner.offline.rebalance's: without the regrown regions
+(``REGROW_MAX_SUB_CELLS = 0``) and with them, both unrefined (``REFINE_MAX_SUB_CELLS = 0``),
+and the re-plan as it is (refined by planner.offline.refine). A lighter sub-cell is
+covered; each survivor's route in its colour from where it stands (a dot); the dead
+robot's orphans are black.
 """
 
 from __future__ import annotations
@@ -86,11 +88,13 @@ def main() -> None:
     step = int(args.coverage * plan.makespan)
     covered, survivors = frozen_at(plan, {rp.robot: step for rp in plan.robots}, {args.dead})
     rank = plan_order(plan)
+    refined = rebalance(plan.cycle, covered, survivors, rank)
+    rebalance_module.REFINE_MAX_SUB_CELLS = 0
     with_regions = rebalance(plan.cycle, covered, survivors, rank)
     rebalance_module.REGROW_MAX_SUB_CELLS = 0
     without: Replan = rebalance(plan.cycle, covered, survivors, rank)
     start = {s.robot: s.position for s in survivors}
-    fig, axes = plt.subplots(1, 3, figsize=(15, 5.2))
+    fig, axes = plt.subplots(1, 4, figsize=(20, 5.2))
     draw(axes[0], grid, plan.cycle, covered, {s.robot: s.route for s in survivors}, start,
          orphans(covered, survivors, rank),
          f"robot {args.dead} dead at move {step} of {plan.makespan}: routes left")
@@ -98,11 +102,13 @@ def main() -> None:
          f"re-plan without regrown regions: {step} + {without.makespan} moves")
     draw(axes[2], grid, plan.cycle, covered, with_regions.routes, start, [],
          f"re-plan with them: {step} + {with_regions.makespan} moves")
+    draw(axes[3], grid, plan.cycle, covered, refined.routes, start, [],
+         f"refined (the re-plan now): {step} + {refined.makespan} moves")
     fig.tight_layout()
     save_figure(fig, out, "out", dpi=90)
     plt.close(fig)
-    print(f"wrote {out}: re-plan {without.makespan} -> {with_regions.makespan} moves after "
-          f"move {step} (fault-free {plan.makespan})")
+    print(f"wrote {out}: re-plan {without.makespan} -> {with_regions.makespan} -> "
+          f"{refined.makespan} moves after move {step} (fault-free {plan.makespan})")
 
 
 if __name__ == "__main__":
