@@ -16,7 +16,9 @@ Beside that re-plan up to three others are made and the one that finishes first 
 whole uncovered work cut anew in the plan's order or along the cycle (with at most
 MAX_TAKERS survivors), and balanced regions of it grown from where the survivors stand
 (planner.balanced.regrow), whose robots next to the orphans take them and leave their own
-far work to their neighbours.
+far work to their neighbours. The one kept is then refined (planner.offline.refine:
+stretches of the last survivor's work moved to another survivor or elsewhere in its own
+route, while that finishes sooner); on small areas each is refined and the best kept.
 
 Places are cycle indices of ``cycle`` (the key space of the offline machines); the walks
 between pieces and to them are shortest paths over the cycle's sub-cells
@@ -152,9 +154,10 @@ def rebalance(cycle: Cycle, covered: BoolArray, survivors: Sequence[Survivor],
     each survivor keeps its route and some append a piece of the orphaned work; or all the
     uncovered work, the survivors' own included, is cut anew (a survivor far from the dead
     robot's region then takes over part of a nearer survivor's); or it is partitioned anew
-    into regions grown from the survivors (:func:`_regrown`). ``covered`` is per cycle
-    index, ``rank`` the order of the work (:func:`plan_order`). Survivors are taken in
-    robot-id order whatever order they come in, so the result depends only on the inputs.
+    into regions grown from the survivors (:func:`_regrown`); the one kept is refined
+    (:func:`_refined`). ``covered`` is per cycle index, ``rank`` the order of the work
+    (:func:`plan_order`). Survivors are taken in robot-id order whatever order they come
+    in, so the result depends only on the inputs.
     """
     survivors = sorted(survivors, key=lambda s: s.robot)
     kept = Replan({s.robot: s.route for s in survivors}, _owners(covered, survivors))
@@ -189,7 +192,8 @@ def _refined(grid: Grid, covered: BoolArray, survivors: list[Survivor], chosen: 
              ) -> Replan:
     """``chosen`` with stretches of work moved between survivors (planner.offline.refine),
     if that finishes sooner (or as soon with fewer moves in all)."""
-    from planner.offline.refine import refined  # with the regrown regions: deaths only
+    # Imported here, as the regrown regions are: only a re-plan after a death needs it.
+    from planner.offline.refine import refined
 
     works: list[list[int]] = []
     for s in survivors:

@@ -132,9 +132,9 @@ def _cuts(steps: IntArray) -> list[int]:
 def _move_one(lists: _Lists, donor: int) -> bool:
     """Make the best move of a stretch of ``donor``'s list; False if none helps."""
     work = lists.works[donor]
-    others = _others(lists, donor)
     if not work:
         return False
+    others = _others(lists, donor)
     top = lists.costs[donor]
     steps = lists.steps[donor]
     inner = np.concatenate([[0], np.cumsum(steps)])  # inner[j] - inner[i + 1]: along i..j-1
