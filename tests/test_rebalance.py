@@ -111,6 +111,7 @@ def test_the_replan_depends_only_on_its_inputs() -> None:
     assert first == again
 
 
+@pytest.mark.slow  # 4-5 s each (the quick loop stays near a minute)
 @pytest.mark.parametrize("algo", ("opt", "balanced"))
 def test_rebalancing_beats_the_takeover_on_seeded_instances(algo: str) -> None:
     """One death at 30 % coverage on generated instances: rebalancing finishes first on
@@ -137,6 +138,7 @@ def unrefined(grid: Grid, covered: np.ndarray, survivors: list[Survivor],
     return chosen
 
 
+@pytest.mark.slow  # 4-5.5 s each (the quick loop stays near a minute)
 @pytest.mark.parametrize(("switch", "off", "at_least"), [
     ("_greedy_split", lambda *_, **__: None, 2),
     ("REGROW_MAX_SUB_CELLS", 0, 3),
