@@ -12,7 +12,8 @@ local search does (the "or-opt" move of vehicle routing). Each move:
 
 The move that leaves the later of the two finishes smallest is made, until none helps or
 MAX_MOVES were made. A list's cost is the walk along it: shortest paths between
-consecutive places (planner.offline.shortest).
+consecutive places (planner.offline.shortest: ``Grid.distance``, and ``Grid.rows`` for
+the distances from a stretch's ends to every place).
 
 Integer costs and fixed orders (the first best move on a tie, survivors in the given
 order), so every survivor computes the same result from the same inputs; a place stays
@@ -27,14 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.offline.shortest import Grid
-from planner.types import Cycle, IntArray
+from planner.types import IntArray
 
 MAX_MOVES = 64
 STRETCHES = 12  # a list is cut evenly into about this many stretches, and at its gaps
 MAX_CUTS = 24  # cut places per list at most (the widest gaps kept first)
-_CLIP = (1 << 31) - 1
-MAX_MAPS = 128  # distance rows kept between moves (n int32 each: 6 MB at 12 000 places)
-UNREACHABLE = 1 << 28  # moves to a place no walk reaches: four of them still fit _CLIP
+_CLIP = (1 << 31) - 1  # above any cost but one through a place no walk reaches
 
 
 def refined(grid: Grid, positions: Sequence[int], works: Sequence[Sequence[int]], *,
@@ -56,7 +55,6 @@ class _Lists:
 
     def __init__(self, grid: Grid, positions: list[int], works: list[list[int]]) -> None:
         self.grid = grid
-        self.maps = _Maps(grid.cycle)
         self.positions = positions
         self.works = works
         self.steps = [self._steps(r) for r in range(len(works))]
@@ -142,7 +140,7 @@ def _move_one(lists: _Lists, donor: int) -> bool:
     rest_total = sum(lists.costs) - top
     best: tuple[tuple[int, int], int, int, int, int, bool] | None = None
     cuts = _cuts(steps)
-    maps = lists.maps.rows([work[t] for t in cuts[:-1]] + [work[t - 1] for t in cuts[1:]])
+    maps = lists.grid.rows([work[t] for t in cuts[:-1]] + [work[t - 1] for t in cuts[1:]])
     for x, i in enumerate(cuts[:-1]):
         for j in cuts[x + 1:]:
             inside = int(inner[j] - inner[i + 1])  # moves along the stretch work[i:j]
@@ -190,34 +188,3 @@ def _move_one(lists: _Lists, donor: int) -> bool:
         target = lists.works[taker]
         lists.replace(taker, target[:at] + stretch + target[at:])
     return True
-
-
-class _Maps:
-    """Moves from a place to every place (cycle-index space): scipy's breadth-first
-    searches, many sources per call, the last MAX_MAPS kept."""
-
-    def __init__(self, cycle: Cycle) -> None:
-        from scipy.sparse import csr_matrix  # a re-plan after a death loads scipy anyway
-
-        index = cycle.index
-        pairs = [(index[:-1, :], index[1:, :]), (index[:, :-1], index[:, 1:])]
-        src = np.concatenate([a[(a >= 0) & (b >= 0)] for a, b in pairs])
-        dst = np.concatenate([b[(a >= 0) & (b >= 0)] for a, b in pairs])
-        self.graph = csr_matrix((np.ones(src.size, dtype=np.int8), (src, dst)),
-                                shape=(cycle.n, cycle.n))
-        self._rows: dict[int, IntArray] = {}
-
-    def rows(self, sources: Sequence[int]) -> dict[int, IntArray]:
-        from scipy.sparse.csgraph import shortest_path
-
-        wanted = list(dict.fromkeys(sources))
-        missing = [s for s in wanted if s not in self._rows]
-        if missing:
-            found = shortest_path(self.graph, directed=False, unweighted=True, indices=missing)
-            found[~np.isfinite(found)] = UNREACHABLE
-            for source, row in zip(missing, found.astype(np.int32), strict=True):
-                self._rows[source] = row
-        out = {s: self._rows[s] for s in wanted}
-        for source in list(self._rows)[:max(len(self._rows) - MAX_MAPS, 0)]:
-            del self._rows[source]  # the oldest first; this move's rows are in ``out``
-        return out
