@@ -10,9 +10,14 @@ with numpy for the whole grid at once and the cycle is then read off by followin
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planner.types import Cycle, IntArray, SpanningTree, SubCell
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_matrix
 
 
 def successor_map(tree: SpanningTree) -> IntArray:
@@ -91,3 +96,16 @@ def order_robots(cycle: Cycle, starts: list[SubCell] | tuple[SubCell, ...]) -> l
     if missing:
         raise ValueError(f"robots {missing} do not start on the cycle")
     return sorted(range(len(starts)), key=lambda robot: positions[robot])
+
+
+def cycle_graph(cycle: Cycle) -> csr_matrix:
+    """The 4-adjacency of the cycle's sub-cells, nodes = cycle indices, each pair once (for
+    scipy.sparse.csgraph with ``directed=False``): shortest walks between places."""
+    # Imported here: the agents import this module, and only their re-plans need scipy.
+    from scipy.sparse import csr_matrix
+
+    index = cycle.index
+    pairs = [(index[:-1, :], index[1:, :]), (index[:, :-1], index[:, 1:])]
+    src = np.concatenate([a[(a >= 0) & (b >= 0)] for a, b in pairs])
+    dst = np.concatenate([b[(a >= 0) & (b >= 0)] for a, b in pairs])
+    return csr_matrix((np.ones(src.size, dtype=np.int8), (src, dst)), shape=(cycle.n, cycle.n))

@@ -4,11 +4,16 @@ after a death (planner.offline.rebalance) measure their pieces and walks with.""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.cycle import cycle_graph
 from planner.grid import FAR, breadth_first
 from planner.types import BoolArray, Cycle, IntArray
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_matrix
 
 NEAR = 32  # places at most this far apart (manhattan) are searched in a window first
 MAX_ROWS = 128  # distance rows kept by Grid.rows (n int32 each: 6 MB at 12 000 places)
@@ -35,7 +40,7 @@ class Grid:
         self.free: BoolArray = cycle.index >= 0
         self._dist: dict[tuple[int, frozenset[int]], IntArray] = {}
         self._pairs: dict[tuple[int, int], int] = {}  # distances found in a window
-        self._graph: object | None = None  # the places' adjacency, for rows()
+        self._graph: csr_matrix | None = None  # the places' adjacency, for rows()
         self._rows: dict[int, IntArray] = {}
 
     def from_source(self, source: int, avoid: frozenset[int] = frozenset()) -> IntArray:
@@ -135,16 +140,10 @@ class Grid:
         UNREACHABLE where no walk leads): scipy's breadth-first searches, many sources per
         call, the last MAX_ROWS rows kept. For many distances from a few sources (the
         re-plan's refinement); scipy is imported only when this is first called."""
-        from scipy.sparse import csr_matrix
         from scipy.sparse.csgraph import shortest_path
 
         if self._graph is None:
-            index = self.cycle.index
-            pairs = [(index[:-1, :], index[1:, :]), (index[:, :-1], index[:, 1:])]
-            src = np.concatenate([a[(a >= 0) & (b >= 0)] for a, b in pairs])
-            dst = np.concatenate([b[(a >= 0) & (b >= 0)] for a, b in pairs])
-            self._graph = csr_matrix((np.ones(src.size, dtype=np.int8), (src, dst)),
-                                     shape=(self.cycle.n, self.cycle.n))
+            self._graph = cycle_graph(self.cycle)
         wanted = list(dict.fromkeys(sources))
         missing = [s for s in wanted if s not in self._rows]
         if missing:

@@ -23,10 +23,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_array
 from scipy.sparse.csgraph import shortest_path
 
-from planner.cycle import order_robots, stc_cycle
+from planner.cycle import cycle_graph, order_robots, stc_cycle
 from planner.metrics import KOBUKI, KinematicParams, path_time
 from planner.tmstc.types import Division, RobotRoute
 from planner.types import Cycle, IntArray, SpanningTree, SubCell
@@ -66,24 +65,11 @@ class _Travel:
     """Shortest paths from every start over the cycle's sub-cells (node id = cycle index)."""
 
     def __init__(self, cycle: Cycle, depots: IntArray) -> None:
-        path, index = cycle.path, cycle.index
-        nodes = np.arange(cycle.n)
-        src, dst = [], []
-        for dr, dc in ((0, 1), (1, 0)):
-            r, c = path[:, 0] + dr, path[:, 1] + dc
-            ok = (r < index.shape[0]) & (c < index.shape[1])
-            other = np.full(cycle.n, -1)
-            other[ok] = index[r[ok], c[ok]]
-            hit = other >= 0
-            src.append(nodes[hit])
-            dst.append(other[hit])
-        s, d = np.concatenate(src), np.concatenate(dst)
-        graph = coo_array((np.ones(len(s)), (s, d)), shape=(cycle.n, cycle.n)).tocsr()
-        dist, pred = shortest_path(graph, directed=False, unweighted=True, indices=depots,
-                                   return_predecessors=True)
+        dist, pred = shortest_path(cycle_graph(cycle), directed=False, unweighted=True,
+                                   indices=depots, return_predecessors=True)
         self.dist = np.asarray(dist).astype(np.int64)
         self.pred = np.asarray(pred).astype(np.int64)
-        self.path = path
+        self.path = cycle.path
         self.twists, self.last = self._twists()
 
     def _twists(self) -> tuple[IntArray, IntArray]:
