@@ -149,7 +149,7 @@ def test_each_kind_of_replan_never_lengthens_the_replan_and_shortens_some(
     """The re-plan keeps an option only when it finishes first, so with it switched off no
     re-plan of these snapshots is shorter, and with it some are. planner.stretches' greedy
     (it sizes each piece to what its taker can do): measured 3 of 12, one move each; the
-    regrown regions (planner.balanced.regrow): 5 of 12, by 1-6 moves (both unrefined: a
+    regrown regions (planner.balanced.regrow): 5 of 12, by 1-5 moves (both unrefined: a
     refinement of another option may win either way); the refinement of the options
     (planner.offline.refine): 6 of 12, by 1-20 moves."""
     shorter = 0
