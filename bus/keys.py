@@ -165,6 +165,15 @@ def all_replans(mission: str) -> str:
     return wildcard("replan", mission)
 
 
+def replan_share(mission: str, robot: int) -> str:
+    """The re-plan a crowded fleet's computing survivor shares (ReplanShare)."""
+    return build("replanned", mission, robot)
+
+
+def all_replan_shares(mission: str) -> str:
+    return wildcard("replanned", mission)
+
+
 def state(mission: str, robot: int) -> str:
     """Queryable answering a robot's current state messages (late joiners, router restart)."""
     return build("state", mission, robot)

@@ -5,6 +5,7 @@ coverage is checked against simhw's ground truth (summary.json)."""
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 from pathlib import Path
@@ -12,16 +13,19 @@ from pathlib import Path
 import pytest
 from test_fleet_up import check_complete, up_argv
 
+from bus.faults import ENV as FAULTS_ENV
+
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 RUN_LIMIT = 180.0
 
 
-def run_balanced(port: int, run_dir: Path, *extra: str,
-                 algo: str = "balanced") -> subprocess.CompletedProcess[str]:
+def run_balanced(port: int, run_dir: Path, *extra: str, algo: str = "balanced",
+                 faults: str = "") -> subprocess.CompletedProcess[str]:
     argv = up_argv(port, run_dir, "--time-scale", "0", *extra, robots=5)
     argv[argv.index("--algo") + 1] = algo
-    return subprocess.run(argv, capture_output=True, text=True, timeout=RUN_LIMIT)
+    env = {**os.environ, FAULTS_ENV: faults} if faults else None
+    return subprocess.run(argv, capture_output=True, text=True, timeout=RUN_LIMIT, env=env)
 
 
 def test_a_balanced_fleet_covers_everything(free_port: int, tmp_path: Path) -> None:
@@ -86,3 +90,28 @@ def test_robots_starting_in_one_row_cross_each_other_and_finish(free_port: int,
     assert robots == 4, summary["traffic"]
     assert waits + bumps > 0, summary["traffic"]
     assert re.search(r"traffic +\d+ waits, \d+ detours, \d+ bumps", result.stdout)
+
+
+def test_a_crowd_walks_the_re_plan_its_lowest_survivor_shares(free_port: int,
+                                                               tmp_path: Path) -> None:
+    """With sharing from 2 survivors on (a crowd of 100 shares from 13), each death's re-plan
+    is computed by the lowest survivor alone and walked by the others as shared; every share
+    is dropped on the wire: the others pull it from the sharer's announcer."""
+    result = run_balanced(free_port, tmp_path / "run", "--kill", "1@progress=20",
+                          "--kill", "3@progress=40", "--time-scale", "100",
+                          "--agent-arg=--replan-share-from=2", algo="opt",
+                          faults="seed=3;replanned.drop=1")
+    summary = check_complete(result, tmp_path / "run")
+    assert {entry["robot"] for entry in summary["robots_lost"]} == {1, 3}
+    lines = re.findall(r"robot (\d+) re-planned: dead (\[[\d, ]*\]), digest (\w+), "
+                       r"\d+ moves to walk(.*)", result.stdout)
+    assert lines, result.stdout
+    by_epoch: dict[str, list[tuple[int, str, str]]] = {}
+    for robot, dead, digest, how in lines:
+        by_epoch.setdefault(dead, []).append((int(robot), digest, how))
+    for dead, said in by_epoch.items():
+        assert len({digest for _, digest, _ in said}) == 1, said
+        # robot 0 survives both deaths: it computes, everyone else walks its share
+        hows = {robot: how for robot, _, how in said}
+        assert hows.pop(0) == ", shared with the fleet", (dead, said)
+        assert set(hows.values()) <= {", shared by robot 0"}, (dead, said)

@@ -40,6 +40,7 @@ from bus.messages import (
     Progress,
     RadioStats,
     ReplanReport,
+    ReplanShare,
     RobotEvent,
     RobotStatus,
     RobotTruth,
@@ -47,6 +48,7 @@ from bus.messages import (
     TreeReport,
     make_world_state,
     pack_covered,
+    pack_routes,
 )
 from bus.messages.schema import (
     ALIVE,
@@ -74,6 +76,7 @@ EXAMPLES: dict[type[Any], Any] = {ex.__class__: ex for ex in (
     AgentState(3, 2, "covering", 10, 16, pack_covered(np.arange(16) < 5), (1,), (1,),
                {"hb.decode": 2}, (((0, 0), (0, 1)),), ((1, 1),), "dfs", 4),
     ReplanReport(3, 2, (1, 4), 7, (8, 9, 10), pack_covered(np.arange(16) < 8)),
+    ReplanShare(0, 2, (1, 4), "ab" * 32, (0, 2, 3), (2, 0, 1), pack_routes([[5, 6], [], [9]])),
     HwCommand(11, 3, 2, "sense", ("front", "left")),
     HwReply(11, 3, "ok", "", (1, 2, 0), (0.5, 0.25), {"front": 3, "left": None}, False, 4.0),
     AdminCommand("fail", 3),

@@ -44,6 +44,7 @@ from bus.messages import (
     MissionStatus,
     Progress,
     ReplanReport,
+    ReplanShare,
     RobotEvent,
     RobotStatus,
     pack_covered,
@@ -67,7 +68,7 @@ def pull_period(announce_period: float, k: int) -> float:
     return announce_period * max(1.0, k / PULL_ROBOTS)
 
 STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress,
-               ReplanReport)
+               ReplanReport, ReplanShare)
 
 
 class OfflineAgent(BodyAgent):
@@ -105,9 +106,15 @@ class OfflineAgent(BodyAgent):
         if self.options.recovery == "rebalance":
             bus.subscribe(keys.all_replans(m), ReplanReport, self._on_replan_report,
                           BoundedFifo(4096))
+            bus.subscribe(keys.all_replan_shares(m), ReplanShare, self._on_replan_share,
+                          BoundedFifo(256))
 
     def _on_replan_report(self, key: str, msg: ReplanReport) -> None:
         if self.board is not None and self.board.on_report(key, msg):
+            self.peers.changed.set()
+
+    def _on_replan_share(self, key: str, msg: ReplanShare) -> None:
+        if self.board is not None and self.board.on_share(key, msg):
             self.peers.changed.set()
 
     def _heartbeat_info(self) -> HeartbeatInfo:
@@ -184,6 +191,8 @@ class OfflineAgent(BodyAgent):
                 self.peers.on_mission(rx.key, msg)
             elif isinstance(msg, ReplanReport):
                 self._on_replan_report(keys.replan(self.bus.mission, msg.robot), msg)
+            elif isinstance(msg, ReplanShare):
+                self._on_replan_share(keys.replan_share(self.bus.mission, msg.robot), msg)
 
     # --- the mission ----------------------------------------------------------------------
 
@@ -260,7 +269,8 @@ class OfflineAgent(BodyAgent):
                                 takeover=not rebalancing)
         self.peers.attach(machine)
         if rebalancing:
-            self.board = ReplanBoard(self.plan, self.bus.drops)
+            self.board = ReplanBoard(self.plan, self.bus.drops,
+                                     share_from=self.options.replan_share_from)
             self.bodies = Bodies.of_plan(self.plan, self.robot)
         self.runner = OfflineRunner(self.bus, self.hardware, self.peers, machine,
                                     self.incarnation, refresh=self.refresh,

@@ -7,6 +7,7 @@ import argparse
 from dataclasses import dataclass
 
 from agent.core.errors import ConfigError
+from agent.offline.replan import SHARE_FROM
 from bus.argtypes import positive_int
 from planner.algorithms import Family, names
 from planner.offline.rebalance import DEFAULT_RECOVERY, RECOVERIES, Recovery
@@ -23,6 +24,7 @@ class OfflineOptions:
     cell_size: int | None = None
     tree: str = DEFAULT_TREE
     recovery: Recovery = DEFAULT_RECOVERY
+    replan_share_from: int = SHARE_FROM
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,6 +41,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             "or step aside) or the papers' takeover (the robot behind walks "
                             "the dead one's rest after its own) "
                             f"(default {DEFAULT_RECOVERY})")
+    group.add_argument("--replan-share-from", type=positive_int, default=SHARE_FROM,
+                       metavar="N",
+                       help="with --recovery rebalance, from N survivors on only the lowest "
+                            "computes a re-plan and shares it; the others check it against "
+                            "their own reports and walk it (computing it themselves if it "
+                            f"does not come) (default {SHARE_FROM})")
 
 
 def from_args(args: argparse.Namespace) -> OfflineOptions:
@@ -50,4 +58,4 @@ def from_args(args: argparse.Namespace) -> OfflineOptions:
         raise ConfigError(f"argument --tree: invalid choice for --algo {args.algo}: {tree!r} "
                           f"(choose from {', '.join(ALL_TREE_KINDS)})")
     return OfflineOptions(world=args.world, cell_size=args.cell_size, tree=tree,
-                          recovery=args.recovery)
+                          recovery=args.recovery, replan_share_from=args.replan_share_from)

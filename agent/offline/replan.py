@@ -9,21 +9,47 @@ from its own later knowledge — so every survivor computes the same re-plan, an
 of the reports it used says so in its "replanned" event. A death heard meanwhile starts a new
 epoch (the newly dead robot's report, if any, no longer counts); a report of an older epoch is
 kept until its sender catches up.
+
+In a crowded fleet (at least ``share_from`` survivors) every survivor computing the same
+re-plan at once costs the fleet survivors x its CPU: 99 survivors of a 100-robot fleet on 2
+cores re-planned 179-211 s after the death (docs/operations.md). There the lowest survivor
+of the epoch (its *sharer*) computes it alone and shares it (ReplanShare, with the digest of
+the reports); the others check it against their own reports and walk it. A share that does
+not come within ``share_wait`` (the sharer hung, its message lost for good) is computed
+locally after all: the same result, later. The trade-off: a survivor of a crowded fleet
+trusts the sharer's arithmetic (its inputs and the cover it promises are checked, the
+routes' lengths are not); the fleet's robots are authenticated (docs/security.md).
 """
 
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from bus import keys
 from bus.drops import DropCounter
-from bus.messages import ReplanReport, unpack_covered
+from bus.messages import ReplanReport, ReplanShare, unpack_covered, unpack_routes
 from planner.offline.rebalance import Replan, Survivor, plan_order, rebalance
 from planner.types import BoolArray, Cycle, IntArray, Plan
+
+# Survivors from which one computes the re-plan for all: below, computing it is cheaper than
+# waiting for a message (0.3-0.8 s of CPU at most 12 survivors, docs/balanced.md).
+SHARE_FROM = 13
+# How long a survivor waits for the sharer's re-plan before computing it itself: the
+# sharer computes it among the fleet's other work (about 25 ms of CPU a second per idle
+# agent), so the wait grows with the fleet.
+SHARE_WAIT_MIN_S = 10.0
+SHARE_WAIT_S_PER_SURVIVOR = 0.5
+
+Routes = Mapping[int, tuple[int, ...]]
+
+
+def share_wait(survivors: int) -> float:
+    """Seconds a survivor waits for a shared re-plan of ``survivors`` survivors."""
+    return max(SHARE_WAIT_MIN_S, SHARE_WAIT_S_PER_SURVIVOR * survivors)
 
 
 class ReplanBoard:
@@ -31,12 +57,14 @@ class ReplanBoard:
     plan's robots (the agreed participants) take part in a re-plan: a robot that never
     announced its start has no section, and its death changes nothing."""
 
-    def __init__(self, plan: Plan, drops: DropCounter) -> None:
+    def __init__(self, plan: Plan, drops: DropCounter, *, share_from: int = SHARE_FROM) -> None:
         self.cycle = plan.cycle
         self.members = tuple(sorted(rp.robot for rp in plan.robots))
         self.drops = drops
         self.rank = plan_order(plan)
+        self.share_from = share_from
         self.reports: dict[int, ReplanReport] = {}
+        self.shares: dict[tuple[int, ...], tuple[ReplanShare, dict[int, tuple[int, ...]]]] = {}
 
     def on_report(self, key: str, msg: ReplanReport) -> bool:
         """Keep ``msg`` if it makes sense; True when it is news."""
@@ -61,6 +89,67 @@ class ReplanBoard:
             return False  # an older life's, or an older epoch's re-announcement
         self.reports[msg.robot] = msg
         return known != msg
+
+    def on_share(self, key: str, msg: ReplanShare) -> bool:
+        """Keep a shared re-plan if it is well formed; True when it is news."""
+        n = self.cycle.n
+        parsed = keys.parse(key)
+        survivors = tuple(r for r in self.members if r not in msg.dead)
+        problem = ""
+        routes: list[list[int]] = []
+        if msg.robot not in self.members or (parsed is not None and parsed.robot != msg.robot):
+            problem = f"replan share of robot {msg.robot} (no member of the plan) on {key}"
+        elif tuple(sorted(set(msg.dead))) != msg.dead or msg.robot in msg.dead \
+                or msg.robots != survivors or len(msg.lengths) != len(survivors):
+            problem = (f"replan share of robot {msg.robot}: routes of {list(msg.robots)} for "
+                       f"dead {list(msg.dead)}, not of the survivors")
+        else:
+            try:
+                routes = unpack_routes(msg.places, msg.lengths)
+            except ValueError as error:
+                problem = f"replan share of robot {msg.robot}: {error}"
+            if not problem and not all(0 <= i < n for route in routes for i in route):
+                problem = f"replan share of robot {msg.robot} names places off the {n}-cycle"
+        if problem:
+            self.drops.count("replan_share", "invalid", problem)
+            return False
+        known = self.shares.get(msg.dead)
+        if known is not None and known[0] == msg:
+            return False
+        self.shares[msg.dead] = (msg, {r: tuple(route) for r, route
+                                       in zip(msg.robots, routes, strict=True)})
+        return True
+
+    def sharer(self, dead: tuple[int, ...]) -> int | None:
+        """The survivor that computes epoch ``dead``'s re-plan for all of them, or None if
+        each computes it (fewer than ``share_from`` survivors)."""
+        survivors = [r for r in self.members if r not in dead]
+        return survivors[0] if survivors and len(survivors) >= self.share_from else None
+
+    def shared(self, inputs: ReplanInputs) -> tuple[int, Routes] | None:
+        """The re-plan shared for ``inputs``' epoch, with its sender, if it was made from
+        the same reports (the digest) and covers what they leave uncovered; a share that
+        does not is counted and ignored."""
+        kept = self.shares.get(inputs.dead)
+        if kept is None:
+            return None
+        msg, routes = kept
+        problem = ""
+        if msg.digest != inputs.digest:
+            problem = (f"replan share of robot {msg.robot} for dead {list(msg.dead)} made "
+                       f"from other reports (digest {msg.digest[:16]})")
+        else:
+            walked = inputs.covered.copy()
+            for route in routes.values():
+                walked[list(route)] = True
+            if not walked.all():
+                problem = (f"replan share of robot {msg.robot} leaves "
+                           f"{int((~walked).sum())} sub-cells uncovered")
+        if problem:
+            self.drops.count("replan_share", "unusable", problem)
+            del self.shares[inputs.dead]
+            return None
+        return msg.robot, routes
 
     def epoch(self, dead: Collection[int]) -> tuple[int, ...]:
         """The re-plan epoch of the robots known dead: the plan's robots among them."""
@@ -88,13 +177,15 @@ class ReplanBoard:
                           .encode())
         digest.update(np.packbits(covered).tobytes())
         survivors = tuple(Survivor(r.robot, r.position, r.route) for r in used)
-        return ReplanInputs(self.cycle, covered, survivors, self.rank, digest.hexdigest())
+        return ReplanInputs(dead, self.cycle, covered, survivors, self.rank,
+                            digest.hexdigest())
 
 
 @dataclass(frozen=True)
 class ReplanInputs:
     """One epoch's re-plan inputs and the digest of the reports they came from."""
 
+    dead: tuple[int, ...]
     cycle: Cycle
     covered: BoolArray
     survivors: tuple[Survivor, ...]

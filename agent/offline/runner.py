@@ -25,10 +25,18 @@ from agent.core.errors import HardwareError
 from agent.offline.bodies import Bodies
 from agent.offline.hardware import Hardware
 from agent.offline.peers import PeerTable
-from agent.offline.replan import ReplanBoard
+from agent.offline.replan import ReplanBoard, ReplanInputs, Routes, share_wait
 from bus import keys
 from bus.bridge import Bus
-from bus.messages import EventKind, Progress, ReplanReport, RobotEvent, pack_covered
+from bus.messages import (
+    EventKind,
+    Progress,
+    ReplanReport,
+    ReplanShare,
+    RobotEvent,
+    pack_covered,
+    pack_routes,
+)
 from planner.offline.machine import Finished, MoveTo, PlanRobot, WaitFor
 from planner.offline.traffic import Go, Traffic
 
@@ -172,26 +180,63 @@ class OfflineRunner:
         while self._dead() == dead and not m.all_covered:
             if not self.board.missing(dead):
                 inputs = self.board.inputs(dead)
-                # Off the loop: at 100 robots a re-plan is a second or more of CPU, and a
-                # blocked loop sends no heartbeats (under load, peers declared robots that
-                # were re-planning dead: chaos campaign of 2026-12-02, trial 41).
-                replan = await asyncio.to_thread(inputs.solve)
-                covered, digest = inputs.covered, inputs.digest
-                for index in np.flatnonzero(covered):
+                made = await self._replan_of(inputs)
+                if made is None:
+                    continue  # a new death, or all covered, while waiting for the share
+                routes, how = made
+                for index in np.flatnonzero(inputs.covered):
                     m.on_covered(int(index))
-                route = replan.routes[self.robot]
+                route = routes[self.robot]
                 m.on_replan(route)
                 if self.lane is not None and self.bodies is not None:
                     self.lane.rejoin()
-                    self.bodies.on_replan(replan.routes, self.board.positions(dead))
+                    self.bodies.on_replan(routes, self.board.positions(dead))
                 self._epoch = dead
-                self.event("replanned", None, f"dead {list(dead)}, digest {digest[:16]}, "
-                                              f"{len(route)} moves to walk")
+                self.event("replanned", None, f"dead {list(dead)}, digest {inputs.digest[:16]}, "
+                                              f"{len(route)} moves to walk{how}")
                 return
-            if time.monotonic() - self._refreshed >= self._refresh_period:
-                self._refreshed = time.monotonic()
-                await self._refresh()
-            await self.peers.wait_news(self._refresh_period)
+            await self._wait_reports()
+
+    async def _wait_reports(self) -> None:
+        if time.monotonic() - self._refreshed >= self._refresh_period:
+            self._refreshed = time.monotonic()
+            await self._refresh()
+        await self.peers.wait_news(self._refresh_period)
+
+    async def _replan_of(self, inputs: ReplanInputs) -> tuple[Routes, str] | None:
+        """The re-plan of ``inputs`` and how it was had (for the event): computed here, or
+        in a crowded fleet shared by the epoch's sharer (agent.offline.replan); None if the
+        epoch ended while waiting for the share."""
+        assert self.board is not None and self._announce is not None
+        sharer = self.board.sharer(inputs.dead)
+        if sharer is None or sharer == self.robot:
+            routes = await self._solve(inputs)
+            if sharer is None:
+                return routes, ""
+            share = ReplanShare(self.robot, self.incarnation, inputs.dead, inputs.digest,
+                                tuple(routes), tuple(len(r) for r in routes.values()),
+                                pack_routes(list(routes.values())))
+            self._announce(keys.replan_share(self.bus.mission, self.robot), share)
+            return routes, ", shared with the fleet"
+        wait = share_wait(len(inputs.survivors))
+        deadline = time.monotonic() + wait
+        self.phase = f"waiting for robot {sharer}'s re-plan"
+        while self._dead() == inputs.dead and not self.machine.all_covered:
+            shared = self.board.shared(inputs)
+            if shared is not None:
+                return shared[1], f", shared by robot {shared[0]}"
+            if time.monotonic() >= deadline:
+                routes = await self._solve(inputs)
+                return routes, f", computed here: robot {sharer}'s not heard in {wait:.0f} s"
+            await self._wait_reports()
+        return None
+
+    async def _solve(self, inputs: ReplanInputs) -> Routes:
+        # Off the loop: at 100 robots a re-plan is a second or more of CPU, and a blocked
+        # loop sends no heartbeats (under load, peers declared robots that were re-planning
+        # dead: chaos campaign of 2026-12-02, trial 41).
+        replan = await asyncio.to_thread(inputs.solve)
+        return {r: replan.routes[r] for r in sorted(replan.routes)}
 
     async def _move(self, action: MoveTo) -> None:
         await self.hardware.step_to(action.sub)

@@ -53,8 +53,11 @@ from bus.messages.progress import (
     LookStep,
     Progress,
     ReplanReport,
+    ReplanShare,
     pack_covered,
+    pack_routes,
     unpack_covered,
+    unpack_routes,
 )
 from bus.messages.schema import (
     KIND_SINCE,
@@ -87,10 +90,11 @@ __all__ = [
     "MissionState", "MissionStatus", "OrmstcClaim", "OrmstcCompletion", "OrmstcConnection",
     "OrmstcDeadRobot", "OrmstcRetraction", "OrmstcStart", "OrmstcTreeEdge", "OrmstcWire",
     "OrmstcWithdrawal",
-    "Pose", "Progress", "RadioStats", "ReplanReport", "RobotArray", "RobotEvent",
+    "Pose", "Progress", "RadioStats", "ReplanReport", "ReplanShare", "RobotArray", "RobotEvent",
     "RobotStateName", "RobotStatus", "RobotTruth", "Sensor", "SonarRays", "SubCell",
     "SummaryValue",
     "TreeReport",
-    "WorldState", "make_world_state", "pack_covered", "unpack_covered",
+    "WorldState", "make_world_state", "pack_covered", "pack_routes", "unpack_covered",
+    "unpack_routes",
     "version_problem", "world_crossed", "world_first", "world_free", "world_visits",
 ]

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import itertools
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -74,6 +76,45 @@ class ReplanReport:
     position: int
     route: tuple[int, ...]
     covered: bytes
+
+
+@dataclass(frozen=True)
+class ReplanShare:
+    """The re-plan of epoch ``dead`` as the one survivor that computes it in a crowded fleet
+    (``robot``) made it, for the others to check and walk instead of each computing it
+    (agent.offline.replan): ``digest`` names the reports it was made from, ``robots`` the
+    survivors, ``lengths`` their routes' lengths and ``places`` the routes one after the
+    other (``pack_routes``)."""
+
+    KIND: ClassVar[str] = "replan_share"
+    robot: int
+    incarnation: int
+    dead: tuple[int, ...]
+    digest: str
+    robots: tuple[int, ...]
+    lengths: tuple[int, ...]
+    places: bytes
+
+
+def pack_routes(routes: Sequence[Sequence[int]]) -> bytes:
+    """The routes one after the other as int32 steps (each place minus the one before),
+    then zlib: a route is mostly steps of one along the cycle, so it packs to little."""
+    flat = np.fromiter((p for route in routes for p in route), dtype=np.int64)
+    return zlib.compress(np.diff(flat, prepend=0).astype("<i4").tobytes())
+
+
+def unpack_routes(data: bytes, lengths: Sequence[int]) -> list[list[int]]:
+    """The routes packed by pack_routes, cut at ``lengths``; ValueError if ``data`` is not
+    that many places."""
+    if any(n < 0 for n in lengths):
+        raise ValueError("a route cannot have a negative length")
+    total = sum(lengths)
+    raw = inflate(data, 4 * total + 1)  # one byte more shows a stream that is too long
+    if len(raw) != 4 * total:
+        raise ValueError(f"{len(raw)} bytes of routes, {4 * total} expected")
+    flat = np.cumsum(np.frombuffer(raw, dtype="<i4").astype(np.int64)).tolist()
+    cuts = np.cumsum([0, *lengths]).tolist()
+    return [flat[a:b] for a, b in itertools.pairwise(cuts)]
 
 
 def pack_covered(covered: npt.NDArray[np.bool_]) -> bytes:

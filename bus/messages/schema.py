@@ -35,7 +35,7 @@ from bus.messages.ormstc import (
     OrmstcWithdrawal,
     SonarRays,
 )
-from bus.messages.progress import AgentState, LookStep, Progress, ReplanReport
+from bus.messages.progress import AgentState, LookStep, Progress, ReplanReport, ReplanShare
 from bus.messages.tree import RadioStats, TreeReport
 from bus.messages.world import BumpEvent, CoverEvent, GroundTruthPose, RobotTruth, WorldState
 
@@ -169,6 +169,9 @@ KINDS: tuple[Kind, ...] = (
     # a survivor's input to the re-plan after a death: the others wait for it
     Kind(ReplanReport, (family("replan/{robot}", access=BY_OWN, cache=STATE_CACHE),),
          C.CRITICAL, since=3),
+    # a crowded fleet's re-plan, computed by one survivor, checked and walked by the others
+    Kind(ReplanShare, (family("replanned/{robot}", access=BY_OWN, cache=STATE_CACHE),),
+         C.CRITICAL, since=5),
     # the simulated hardware (bus.messages.hardware)
     Kind(HwCommand, (HW_CMD,), C.CONTROL),
     Kind(HwReply, (HW_CMD,), C.CONTROL),

@@ -1,0 +1,222 @@
+"""A crowded fleet's re-plan computed once (agent.offline.replan, agent.offline.runner): the
+epoch's lowest survivor computes and shares it; the others check it against their own
+reports and walk it, or compute it themselves when no usable share comes in time."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from agent.offline import runner as runner_module
+from agent.offline.plan import compute_plan
+from agent.offline.replan import ReplanBoard, ReplanInputs, share_wait
+from agent.offline.runner import OfflineRunner
+from bus import keys
+from bus.drops import DropCounter
+from bus.messages import ReplanReport, ReplanShare, pack_covered, pack_routes, unpack_routes
+from bus.messages.schema import SCHEMA_VERSION
+from planner.maps.worlds import builtin_world
+from planner.offline.rebalance import rebalance
+from planner.types import Plan
+
+DEAD = (1,)
+
+
+def _plan() -> Plan:
+    world = builtin_world("office")
+    free = np.argwhere(world.free)
+    starts = [(int(r), int(c)) for r, c in free[[0, len(free) // 3, len(free) // 2, -1]]]
+    return compute_plan(world, starts, "opt", "dfs", 0)
+
+
+def _board(plan: Plan, share_from: int = 3) -> ReplanBoard:
+    """A board holding every survivor's report of robot 1's death, each where it started,
+    the first quarter of the cycle covered."""
+    board = ReplanBoard(plan, DropCounter(), share_from=share_from)
+    covered = np.arange(plan.cycle.n) < plan.cycle.n // 4
+    for rp in plan.robots:
+        if rp.robot not in DEAD:
+            report = ReplanReport(rp.robot, 1, DEAD, rp.start_index, (), pack_covered(covered))
+            assert board.on_report(keys.replan("m", rp.robot), report)
+    assert board.missing(DEAD) == []
+    return board
+
+
+def _share(inputs: ReplanInputs, *, sender: int = 0, **changes: Any) -> ReplanShare:
+    replan = rebalance(inputs.cycle, inputs.covered, inputs.survivors, inputs.rank)
+    robots = tuple(sorted(replan.routes))
+    routes = [replan.routes[r] for r in robots]
+    share = ReplanShare(sender, 1, inputs.dead, inputs.digest, robots,
+                        tuple(len(r) for r in routes), pack_routes(routes))
+    return dataclasses.replace(share, **changes)
+
+
+def test_routes_pack_and_unpack_and_a_wrong_length_is_refused() -> None:
+    routes = [[5, 6, 7, 8], [], [100, 99, 98, 2000]]
+    packed = pack_routes(routes)
+    assert unpack_routes(packed, [4, 0, 4]) == routes
+    with pytest.raises(ValueError, match="expected"):
+        unpack_routes(packed, [4, 0, 3])
+    with pytest.raises(ValueError, match="expected"):
+        unpack_routes(packed, [4, 0, 5])
+    with pytest.raises(ValueError, match="negative"):
+        unpack_routes(packed, [9, -1])
+    with pytest.raises(ValueError, match="decompress"):
+        unpack_routes(b"not zlib", [2])
+    # a long route along the cycle packs to little: 99 routes of 700 places in under 1 kB
+    assert len(pack_routes([range(i * 1000, i * 1000 + 700) for i in range(99)])) < 1000
+
+
+def test_the_lowest_survivor_shares_and_only_a_crowd_shares() -> None:
+    plan = _plan()
+    assert _board(plan, share_from=3).sharer(DEAD) == 0
+    assert _board(plan, share_from=3).sharer((0, 1)) is None  # two survivors: each computes
+    assert _board(plan, share_from=2).sharer((0, 1)) == 2
+    assert _board(plan, share_from=4).sharer(DEAD) is None
+
+
+def test_a_share_made_from_the_same_reports_is_used_as_made() -> None:
+    plan = _plan()
+    board = _board(plan)
+    inputs = board.inputs(DEAD)
+    share = _share(inputs)
+    assert board.on_share(keys.replan_share("m", 0), share)
+    assert not board.on_share(keys.replan_share("m", 0), share)  # no news the second time
+    got = board.shared(inputs)
+    assert got is not None
+    sender, routes = got
+    replan = rebalance(inputs.cycle, inputs.covered, inputs.survivors, inputs.rank)
+    assert sender == 0 and dict(routes) == replan.routes
+    assert board.drops.total() == 0
+
+
+@pytest.mark.parametrize(("change", "why"), [
+    ({"robot": 1}, "invalid"),  # the dead robot's, or sent on another robot's key
+    ({"robots": (0, 2)}, "invalid"),  # not the survivors
+    ({"lengths": (1, 2)}, "invalid"),
+    ({"places": b"garbage"}, "invalid"),
+    ({"dead": (3, 1)}, "invalid"),
+    ({"digest": "0" * 64}, "unusable"),  # made from other reports
+])
+def test_a_malformed_or_foreign_share_is_counted_and_not_used(change: dict[str, Any],
+                                                              why: str) -> None:
+    plan = _plan()
+    board = _board(plan)
+    inputs = board.inputs(DEAD)
+    share = _share(inputs, **change)
+    board.on_share(keys.replan_share("m", share.robot), share)
+    assert board.shared(inputs) is None
+    assert board.drops.total("replan_share", why) == 1
+
+
+def test_a_share_that_leaves_work_uncovered_is_not_used() -> None:
+    plan = _plan()
+    board = _board(plan)
+    inputs = board.inputs(DEAD)
+    good = _share(inputs)
+    routes = unpack_routes(good.places, good.lengths)
+    routes[1] = routes[1][: len(routes[1]) // 2]  # robot 2 would stop half-way
+    short = dataclasses.replace(good, lengths=tuple(len(r) for r in routes),
+                                places=pack_routes(routes))
+    assert board.on_share(keys.replan_share("m", 0), short)
+    assert board.shared(inputs) is None
+    assert board.drops.total("replan_share", "unusable") == 1
+
+
+def test_a_share_round_trips_the_wire() -> None:
+    from bus.codec import decode, encode
+    plan = _plan()
+    share = _share(_board(plan).inputs(DEAD))
+    assert decode(encode(share), ReplanShare) == share
+    assert SCHEMA_VERSION >= 5
+
+
+# --- the runner's side -------------------------------------------------------------------
+
+
+class _Solves:
+    """Counts the re-plans computed (ReplanInputs.solve) in a test."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.count = 0
+        solve = ReplanInputs.solve
+
+        def counted(inputs: ReplanInputs) -> Any:
+            self.count += 1
+            return solve(inputs)
+
+        monkeypatch.setattr(ReplanInputs, "solve", counted)
+
+
+def _runner(plan: Plan, board: ReplanBoard, robot: int,
+            announced: list[tuple[str, Any]]) -> OfflineRunner:
+    async def wait_news(timeout: float) -> None:
+        await asyncio.sleep(min(timeout, 0.01))
+
+    async def refresh() -> None:
+        return None
+
+    machine = SimpleNamespace(robot=robot, cycle=plan.cycle, position=0, dead={1},
+                              all_covered=False)
+    bus = SimpleNamespace(mission="m", publish=lambda key, msg: None)
+    peers = SimpleNamespace(wait_news=wait_news)
+    return OfflineRunner(bus, None, peers, machine, 1,  # type: ignore[arg-type]
+                         refresh=refresh, refresh_period=0.05, board=board,
+                         announce=lambda key, msg: announced.append((key, msg)))
+
+
+async def test_the_sharer_computes_once_and_announces_what_the_others_walk(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    plan = _plan()
+    solves = _Solves(monkeypatch)
+    announced: list[tuple[str, Any]] = []
+    sharer = _runner(plan, _board(plan), 0, announced)
+    made = await sharer._replan_of(sharer.board.inputs(DEAD))  # type: ignore[union-attr]
+    assert made is not None and made[1] == ", shared with the fleet"
+    assert solves.count == 1
+    [(key, share)] = announced
+    assert key == keys.replan_share("m", 0) and isinstance(share, ReplanShare)
+
+    # another survivor, given the share, walks it without computing anything
+    board = _board(plan)
+    other = _runner(plan, board, 2, [])
+    assert board.on_share(key, share)
+    got = await other._replan_of(board.inputs(DEAD))
+    assert got is not None and got[1] == ", shared by robot 0"
+    assert dict(got[0]) == dict(made[0]) and solves.count == 1
+
+
+async def test_a_share_that_does_not_come_is_computed_after_the_wait(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    plan = _plan()
+    solves = _Solves(monkeypatch)
+    monkeypatch.setattr(runner_module, "share_wait", lambda survivors: 0.2)
+    board = _board(plan)
+    other = _runner(plan, board, 2, [])
+    loop = asyncio.get_running_loop()
+    began = loop.time()
+    got = await other._replan_of(board.inputs(DEAD))
+    assert got is not None and "computed here: robot 0's not heard in" in got[1]
+    assert solves.count == 1 and loop.time() - began >= 0.2
+
+
+async def test_waiting_for_a_share_ends_with_the_epoch(monkeypatch: pytest.MonkeyPatch) -> None:
+    plan = _plan()
+    _Solves(monkeypatch)
+    board = _board(plan)
+    other = _runner(plan, board, 2, [])
+    task = asyncio.create_task(other._replan_of(board.inputs(DEAD)))
+    await asyncio.sleep(0.05)
+    other.machine.dead = {1, 3}  # a second death: a new epoch
+    async with asyncio.timeout(2):
+        assert await task is None
+
+
+def test_the_wait_grows_with_the_fleet() -> None:
+    assert share_wait(13) == 10.0
+    assert share_wait(99) == pytest.approx(49.5)
