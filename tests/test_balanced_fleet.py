@@ -104,7 +104,8 @@ def test_a_crowd_walks_the_re_plan_its_lowest_survivor_shares(free_port: int,
     summary = check_complete(result, tmp_path / "run")
     assert {entry["robot"] for entry in summary["robots_lost"]} == {1, 3}
     lines = re.findall(r"robot (\d+) re-planned: dead (\[[\d, ]*\]), digest (\w+), "
-                       r"\d+ moves to walk(.*)", result.stdout)
+                       r"\d+ moves to walk(.*) \(reports [\d.]+ s, re-plan [\d.]+ s\)",
+                       result.stdout)
     assert lines, result.stdout
     by_epoch: dict[str, list[tuple[int, str, str]]] = {}
     for robot, dead, digest, how in lines:

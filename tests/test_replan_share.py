@@ -88,10 +88,9 @@ def test_a_share_made_from_the_same_reports_is_used_as_made() -> None:
     assert board.on_share(keys.replan_share("m", 0), share)
     assert not board.on_share(keys.replan_share("m", 0), share)  # no news the second time
     got = board.shared(inputs)
-    assert got is not None
-    sender, routes = got
+    assert got is not None and not got.problem
     replan = rebalance(inputs.cycle, inputs.covered, inputs.survivors, inputs.rank)
-    assert sender == 0 and dict(routes) == replan.routes
+    assert got.sender == 0 and dict(got.routes) == replan.routes
     assert board.drops.total() == 0
 
 
@@ -110,8 +109,12 @@ def test_a_malformed_or_foreign_share_is_counted_and_not_used(change: dict[str, 
     inputs = board.inputs(DEAD)
     share = _share(inputs, **change)
     board.on_share(keys.replan_share("m", share.robot), share)
-    assert board.shared(inputs) is None
+    got = board.shared(inputs)
+    assert (got is None) == (why == "invalid")
+    assert got is None or (got.problem.startswith("was made from other reports")
+                           and not got.routes)
     assert board.drops.total("replan_share", why) == 1
+    assert board.shared(inputs) is None  # forgotten
 
 
 def test_a_share_that_leaves_work_uncovered_is_not_used() -> None:
@@ -124,7 +127,8 @@ def test_a_share_that_leaves_work_uncovered_is_not_used() -> None:
     short = dataclasses.replace(good, lengths=tuple(len(r) for r in routes),
                                 places=pack_routes(routes))
     assert board.on_share(keys.replan_share("m", 0), short)
-    assert board.shared(inputs) is None
+    got = board.shared(inputs)
+    assert got is not None and got.problem.startswith("leaves ") and not got.routes
     assert board.drops.total("replan_share", "unusable") == 1
 
 
@@ -217,6 +221,18 @@ async def test_waiting_for_a_share_ends_with_the_epoch(monkeypatch: pytest.Monke
         assert await task is None
 
 
+async def test_an_unusable_share_is_computed_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    plan = _plan()
+    solves = _Solves(monkeypatch)
+    board = _board(plan)
+    inputs = board.inputs(DEAD)
+    assert board.on_share(keys.replan_share("m", 0), _share(inputs, digest="0" * 64))
+    async with asyncio.timeout(share_wait(3) / 2):  # long before the wait ends
+        got = await _runner(plan, board, 2, [])._replan_of(inputs)
+    assert got is not None and got[1].startswith(", computed here: robot 0's was made from")
+    assert solves.count == 1
+
+
 def test_the_wait_grows_with_the_fleet() -> None:
-    assert share_wait(13) == 10.0
-    assert share_wait(99) == pytest.approx(49.5)
+    assert share_wait(3) == 10.0
+    assert share_wait(99) == pytest.approx(148.5)

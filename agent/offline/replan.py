@@ -38,11 +38,14 @@ from planner.types import BoolArray, Cycle, IntArray, Plan
 # Survivors from which one computes the re-plan for all: below, computing it is cheaper than
 # waiting for a message (0.3-0.8 s of CPU at most 12 survivors, docs/balanced.md).
 SHARE_FROM = 13
-# How long a survivor waits for the sharer's re-plan before computing it itself: the
-# sharer computes it among the fleet's other work (about 25 ms of CPU a second per idle
-# agent), so the wait grows with the fleet.
+# How long a survivor waits for the sharer's re-plan before computing it itself. The sharer
+# computes it among the fleet's other work (about 25 ms of CPU a second per idle agent: 100
+# agents overload 2 cores), so the wait grows with the fleet: with 0.5 s per survivor, 99
+# survivors gave up 50 s before the share came and all computed it anyway. A sharer that
+# hangs for good is declared dead (a new epoch, a new sharer), so the wait only has to
+# outlast a slow one.
 SHARE_WAIT_MIN_S = 10.0
-SHARE_WAIT_S_PER_SURVIVOR = 0.5
+SHARE_WAIT_S_PER_SURVIVOR = 1.5
 
 Routes = Mapping[int, tuple[int, ...]]
 
@@ -126,30 +129,29 @@ class ReplanBoard:
         survivors = [r for r in self.members if r not in dead]
         return survivors[0] if survivors and len(survivors) >= self.share_from else None
 
-    def shared(self, inputs: ReplanInputs) -> tuple[int, Routes] | None:
-        """The re-plan shared for ``inputs``' epoch, with its sender, if it was made from
-        the same reports (the digest) and covers what they leave uncovered; a share that
-        does not is counted and ignored."""
+    def shared(self, inputs: ReplanInputs) -> Shared | None:
+        """The re-plan shared for ``inputs``' epoch, if any: usable when it was made from
+        the same reports (the digest) and covers what they leave uncovered, else with the
+        problem (counted; the share is then forgotten)."""
         kept = self.shares.get(inputs.dead)
         if kept is None:
             return None
         msg, routes = kept
         problem = ""
         if msg.digest != inputs.digest:
-            problem = (f"replan share of robot {msg.robot} for dead {list(msg.dead)} made "
-                       f"from other reports (digest {msg.digest[:16]})")
+            problem = f"was made from other reports (digest {msg.digest[:16]})"
         else:
             walked = inputs.covered.copy()
             for route in routes.values():
                 walked[list(route)] = True
             if not walked.all():
-                problem = (f"replan share of robot {msg.robot} leaves "
-                           f"{int((~walked).sum())} sub-cells uncovered")
+                problem = f"leaves {int((~walked).sum())} sub-cells uncovered"
         if problem:
-            self.drops.count("replan_share", "unusable", problem)
+            self.drops.count("replan_share", "unusable", f"replan share of robot {msg.robot} "
+                                                         f"for dead {list(msg.dead)} {problem}")
             del self.shares[inputs.dead]
-            return None
-        return msg.robot, routes
+            return Shared(msg.robot, {}, problem)
+        return Shared(msg.robot, routes)
 
     def epoch(self, dead: Collection[int]) -> tuple[int, ...]:
         """The re-plan epoch of the robots known dead: the plan's robots among them."""
@@ -179,6 +181,15 @@ class ReplanBoard:
         survivors = tuple(Survivor(r.robot, r.position, r.route) for r in used)
         return ReplanInputs(dead, self.cycle, covered, survivors, self.rank,
                             digest.hexdigest())
+
+
+@dataclass(frozen=True)
+class Shared:
+    """A re-plan shared by ``sender``: its routes, or why they cannot be walked."""
+
+    sender: int
+    routes: Routes
+    problem: str = ""
 
 
 @dataclass(frozen=True)

@@ -177,9 +177,11 @@ class OfflineRunner:
                             pack_covered(m.covered))
         self.board.on_report(keys.replan(self.bus.mission, self.robot), mine)
         self._announce(keys.replan(self.bus.mission, self.robot), mine)
+        stopped = time.monotonic()
         while self._dead() == dead and not m.all_covered:
             if not self.board.missing(dead):
                 inputs = self.board.inputs(dead)
+                reported = time.monotonic()
                 made = await self._replan_of(inputs)
                 if made is None:
                     continue  # a new death, or all covered, while waiting for the share
@@ -192,8 +194,12 @@ class OfflineRunner:
                     self.lane.rejoin()
                     self.bodies.on_replan(routes, self.board.positions(dead))
                 self._epoch = dead
+                # how long the reports and the re-plan took: a crowded fleet's stall
+                done = time.monotonic()
                 self.event("replanned", None, f"dead {list(dead)}, digest {inputs.digest[:16]}, "
-                                              f"{len(route)} moves to walk{how}")
+                                              f"{len(route)} moves to walk{how} (reports "
+                                              f"{reported - stopped:.1f} s, re-plan "
+                                              f"{done - reported:.1f} s)")
                 return
             await self._wait_reports()
 
@@ -223,8 +229,11 @@ class OfflineRunner:
         self.phase = f"waiting for robot {sharer}'s re-plan"
         while self._dead() == inputs.dead and not self.machine.all_covered:
             shared = self.board.shared(inputs)
+            if shared is not None and not shared.problem:
+                return shared.routes, f", shared by robot {shared.sender}"
             if shared is not None:
-                return shared[1], f", shared by robot {shared[0]}"
+                routes = await self._solve(inputs)
+                return routes, f", computed here: robot {sharer}'s {shared.problem}"
             if time.monotonic() >= deadline:
                 routes = await self._solve(inputs)
                 return routes, f", computed here: robot {sharer}'s not heard in {wait:.0f} s"
