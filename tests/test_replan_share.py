@@ -235,4 +235,4 @@ async def test_an_unusable_share_is_computed_at_once(monkeypatch: pytest.MonkeyP
 
 def test_the_wait_grows_with_the_fleet() -> None:
     assert share_wait(3) == 10.0
-    assert share_wait(99) == pytest.approx(148.5)
+    assert share_wait(99) == pytest.approx(297.0)

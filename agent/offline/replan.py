@@ -39,13 +39,14 @@ from planner.types import BoolArray, Cycle, IntArray, Plan
 # waiting for a message (0.3-0.8 s of CPU at most 12 survivors, docs/balanced.md).
 SHARE_FROM = 13
 # How long a survivor waits for the sharer's re-plan before computing it itself. The sharer
-# computes it among the fleet's other work (about 25 ms of CPU a second per idle agent: 100
-# agents overload 2 cores), so the wait grows with the fleet: with 0.5 s per survivor, 99
-# survivors gave up 50 s before the share came and all computed it anyway. A sharer that
-# hangs for good is declared dead (a new epoch, a new sharer), so the wait only has to
-# outlast a slow one.
+# computes it among the fleet's other work, which in a crowd starves it: 100 agents on 2
+# cores overload them with their own heartbeats and announcements, and the sharer took 194 s
+# for a re-plan of 0.7 s of CPU. With 0.5 s and then 1.5 s per survivor the 99 survivors
+# gave up before the share came and all computed it anyway, later still. A sharer that hangs
+# for good is declared dead (a new epoch, a new sharer), so the wait is a safety net for a
+# slow one, not the way a lost sharer is replaced.
 SHARE_WAIT_MIN_S = 10.0
-SHARE_WAIT_S_PER_SURVIVOR = 1.5
+SHARE_WAIT_S_PER_SURVIVOR = 3.0
 
 Routes = Mapping[int, tuple[int, ...]]
 
