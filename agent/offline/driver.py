@@ -175,9 +175,16 @@ class OfflineAgent(BodyAgent):
 
     async def refresh(self) -> None:
         """Pull every robot's re-learnable state (coverage, deaths, statuses)."""
+        await self._pull(keys.all_states(self.bus.mission))
+
+    async def pull(self, robot: int) -> None:
+        """Pull one robot's re-learnable state: a survivor waiting for the sharer's re-plan
+        asks the sharer only (every robot's, in a crowd, is what starves the sharer)."""
+        await self._pull(keys.state(self.bus.mission, robot))
+
+    async def _pull(self, key: str) -> None:
         replies: list[Received[Any]] = await self.bus.query(
-            keys.all_states(self.bus.mission), None, STATE_KINDS,
-            timeout=min(1.0, self.config.announce_period * 2))
+            key, None, STATE_KINDS, timeout=min(1.0, self.config.announce_period * 2))
         for rx in replies:
             msg = rx.msg
             if isinstance(msg, RobotStatus):
@@ -273,7 +280,7 @@ class OfflineAgent(BodyAgent):
                                      share_from=self.options.replan_share_from)
             self.bodies = Bodies.of_plan(self.plan, self.robot)
         self.runner = OfflineRunner(self.bus, self.hardware, self.peers, machine,
-                                    self.incarnation, refresh=self.refresh,
+                                    self.incarnation, refresh=self.refresh, pull=self.pull,
                                     refresh_period=pull_period(self.config.announce_period,
                                                                self.config.k),
                                     board=self.board, announce=self.announcer.set,

@@ -51,7 +51,8 @@ class OfflineRunner:
 
     def __init__(self, bus: Bus, hardware: Hardware, peers: PeerTable, machine: PlanRobot,
                  incarnation: int, *, refresh: Callable[[], Awaitable[None]],
-                 refresh_period: float, board: ReplanBoard | None = None,
+                 refresh_period: float, pull: Callable[[int], Awaitable[None]] | None = None,
+                 board: ReplanBoard | None = None,
                  announce: Callable[[str, Any], None] | None = None,
                  bodies: Bodies | None = None) -> None:
         self.bus = bus
@@ -64,6 +65,7 @@ class OfflineRunner:
         self.took_over: list[int] = []
         self.phase = "covering"
         self._refresh = refresh
+        self._pull = pull
         self._refresh_period = refresh_period
         self._targets: dict[int, int] = {}  # cycle index -> dead robot whose takeover ends there
         self._section_announced = False
@@ -237,7 +239,14 @@ class OfflineRunner:
             if time.monotonic() >= deadline:
                 routes = await self._solve(inputs)
                 return routes, f", computed here: robot {sharer}'s not heard in {wait:.0f} s"
-            await self._wait_reports()
+            # The sharer re-announces its share every period; the backstop for a lost one
+            # asks the sharer alone: 59 survivors pulling every robot's state while they
+            # waited kept the sharer answering their queries instead of computing.
+            if self._pull is not None \
+                    and time.monotonic() - self._refreshed >= self._refresh_period:
+                self._refreshed = time.monotonic()
+                await self._pull(sharer)
+            await self.peers.wait_news(self._refresh_period)
         return None
 
     async def _solve(self, inputs: ReplanInputs) -> Routes:
