@@ -25,7 +25,7 @@ from agent.core.errors import HardwareError
 from agent.offline.bodies import Bodies
 from agent.offline.hardware import Hardware
 from agent.offline.peers import PeerTable
-from agent.offline.replan import ReplanBoard, ReplanInputs, Routes, share_wait
+from agent.offline.replan import ReplanBoard, ReplanInputs, Routes, routes_apart, share_wait
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import (
@@ -217,10 +217,10 @@ class OfflineRunner:
         epoch ended while waiting for the share."""
         assert self.board is not None and self._announce is not None
         sharer = self.board.sharer(inputs.dead)
-        if sharer is None or sharer == self.robot:
-            routes = await self._solve(inputs)
-            if sharer is None:
-                return routes, ""
+        if sharer is None:
+            return await self._solve(inputs), ""
+        if sharer == self.robot:
+            routes = await routes_apart(inputs)
             share = ReplanShare(self.robot, self.incarnation, inputs.dead, inputs.digest,
                                 tuple(routes), tuple(len(r) for r in routes.values()),
                                 pack_routes(list(routes.values())))
@@ -234,11 +234,11 @@ class OfflineRunner:
             if shared is not None and not shared.problem:
                 return shared.routes, f", shared by robot {shared.sender}"
             if shared is not None:
-                routes = await self._solve(inputs)
-                return routes, f", computed here: robot {sharer}'s {shared.problem}"
+                return (await self._solve(inputs),
+                        f", computed here: robot {sharer}'s {shared.problem}")
             if time.monotonic() >= deadline:
-                routes = await self._solve(inputs)
-                return routes, f", computed here: robot {sharer}'s not heard in {wait:.0f} s"
+                return (await self._solve(inputs),
+                        f", computed here: robot {sharer}'s not heard in {wait:.0f} s")
             # The sharer re-announces its share every period; the backstop for a lost one
             # asks the sharer alone: 59 survivors pulling every robot's state while they
             # waited kept the sharer answering their queries instead of computing.
@@ -253,8 +253,7 @@ class OfflineRunner:
         # Off the loop: at 100 robots a re-plan is a second or more of CPU, and a blocked
         # loop sends no heartbeats (under load, peers declared robots that were re-planning
         # dead: chaos campaign of 2026-12-02, trial 41).
-        replan = await asyncio.to_thread(inputs.solve)
-        return {r: replan.routes[r] for r in sorted(replan.routes)}
+        return await asyncio.to_thread(inputs.routes)
 
     async def _move(self, action: MoveTo) -> None:
         await self.hardware.step_to(action.sub)
