@@ -26,6 +26,7 @@ from bus.messages import (
     Heartbeat,
     HwReply,
     Progress,
+    ReplanReport,
     RobotEvent,
     RobotTruth,
     WorldState,
@@ -139,6 +140,41 @@ def test_strict_decoding_rejects(mutate: Any, match: str) -> None:
     mutate(raw)
     with pytest.raises(DecodeError, match=match):
         decode(pack(raw), Heartbeat)
+
+
+@pytest.mark.parametrize(("heard", "match"), [
+    ([[0, 1, 2], [3, 4, True]], r"heard\[1\]: expected int, got bool"),
+    ([[0, 1, 2], [3, 4]], r"heard\[1\]: expected 3 items, got 2"),
+    ([[0, 1, 2], [3, 4, 5, 6]], r"heard\[1\]: expected 3 items, got 4"),
+    ([[0, 1, 2], [3, 4.0, 5]], r"heard\[1\]: expected int, got float"),
+    ([[0, 1, 2], 7], r"heard\[1\]: expected array, got int"),
+    ([[0, 1, 2], {"a": 1}], r"heard\[1\]: expected array, got dict"),
+    ({"a": 1}, r"heard: expected array, got dict"),
+])
+def test_a_long_array_of_rows_is_checked_as_strictly_as_item_by_item(heard: Any,
+                                                                   match: str) -> None:
+    """The arrays of exact scalars and of rows of them (a status's roster, a route, the
+    heard list) have a fast check; a value that fails it gets the item-by-item error."""
+    raw = raw_of(HB)
+    raw["heard"] = heard
+    with pytest.raises(DecodeError, match=match):
+        decode(pack(raw), Heartbeat)
+    raw["heard"] = [[0, 1, 2], [3, 4, 5]]
+    assert decode(pack(raw), Heartbeat).heard == ((0, 1, 2), (3, 4, 5))
+
+
+def test_an_array_of_scalars_is_checked_as_strictly_as_item_by_item() -> None:
+    raw = raw_of(ReplanReport(3, 2, (1, 4), 7, (8, 9, 10), b"x"))
+    for bad, match in (([8, True], r"route\[1\]: expected int, got bool"),
+                       ([8, 9.0], r"route\[1\]: expected int, got float"),
+                       ([8, [9]], r"route\[1\]: expected int, got tuple")):
+        raw["route"] = bad
+        with pytest.raises(DecodeError, match=match):
+            decode(pack(raw), ReplanReport)
+    with pytest.raises(EncodeError, match=r"route\[0\]: expected int, got bool"):
+        encode(ReplanReport(3, 2, (1, 4), 7, (True,), b"x"))
+    raw["route"] = list(range(500))
+    assert decode(pack(raw), ReplanReport).route == tuple(range(500))
 
 
 def test_a_kind_is_read_from_every_generation_since_its_last_change() -> None:
