@@ -75,12 +75,17 @@ class ReplanBoard:
 
     def on_report(self, key: str, msg: ReplanReport) -> bool:
         """Keep ``msg`` if it makes sense; True when it is news."""
+        if self.reports.get(msg.robot) == msg:
+            # every survivor re-announces its report each period: in a crowd of 60 the
+            # checks below of the same reports again were a third of a waiting agent's loop
+            return False
         n = self.cycle.n
         parsed = keys.parse(key)
         problem = ""
+        places = (msg.position, *msg.route)
         if msg.robot not in self.members or (parsed is not None and parsed.robot != msg.robot):
             problem = f"replan report of robot {msg.robot} (no member of the plan) on {key}"
-        elif not all(0 <= i < n for i in (msg.position, *msg.route)):
+        elif min(places) < 0 or max(places) >= n:
             problem = f"replan report of robot {msg.robot} names places off the {n}-cycle"
         else:
             try:
@@ -99,6 +104,9 @@ class ReplanBoard:
 
     def on_share(self, key: str, msg: ReplanShare) -> bool:
         """Keep a shared re-plan if it is well formed; True when it is news."""
+        known = self.shares.get(msg.dead)
+        if known is not None and known[0] == msg:
+            return False  # re-announced each period: checked already
         n = self.cycle.n
         parsed = keys.parse(key)
         survivors = tuple(r for r in self.members if r not in msg.dead)
@@ -119,9 +127,6 @@ class ReplanBoard:
                 problem = f"replan share of robot {msg.robot} names places off the {n}-cycle"
         if problem:
             self.drops.count("replan_share", "invalid", problem)
-            return False
-        known = self.shares.get(msg.dead)
-        if known is not None and known[0] == msg:
             return False
         self.shares[msg.dead] = (msg, {r: tuple(route) for r, route
                                        in zip(msg.robots, routes, strict=True)})
