@@ -31,6 +31,7 @@ Expected = type[M] | tuple[type[Any], ...]
 Converter = Callable[[Any, str], Any]
 _COMPILED: dict[tuple[Any, bool], Converter] = {}
 _PLANS: dict[tuple[type[Any], bool], tuple[tuple[str, Converter], ...]] = {}
+_BY_KIND: dict[Any, dict[str, type[Any]]] = {}  # expected type(s) -> kind -> type
 
 
 def _error(decoding: bool) -> type[Exception]:
@@ -261,7 +262,9 @@ def decode(payload: bytes, expected: Expected[M], *,
     problem = version_problem(kind if isinstance(kind, str) else "", version)
     if problem is not None and (type(version) is not int or version > SCHEMA_VERSION):
         raise DecodeError(problem)  # a newer or broken generation, whatever the kind
-    by_kind = {cls.KIND: cls for cls in _expected_types(expected)}
+    by_kind = _BY_KIND.get(expected)
+    if by_kind is None:
+        by_kind = _BY_KIND[expected] = {t.KIND: t for t in _expected_types(expected)}
     cls = by_kind.get(kind) if isinstance(kind, str) else None
     if cls is None:
         raise DecodeError(f"kind {kind!r}, expected one of {sorted(by_kind)}")
