@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from agent.offline import replan as replan_module
 from agent.offline import runner as runner_module
 from agent.offline.plan import compute_plan
 from agent.offline.replan import ReplanBoard, ReplanInputs, share_wait
@@ -196,6 +197,23 @@ async def test_the_sharer_computes_once_and_announces_what_the_others_walk(
     got = await other._replan_of(board.inputs(DEAD))
     assert got is not None and got[1] == ", shared by robot 0"
     assert dict(got[0]) == dict(made[0]) and solves.count == 0
+
+
+async def test_a_sharer_that_cannot_start_a_process_computes_in_a_thread(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    plan = _plan()
+    solves = _Solves(monkeypatch)
+
+    def no_process(*args: Any, **kwargs: Any) -> Any:
+        raise OSError(38, "Function not implemented")
+
+    monkeypatch.setattr(replan_module, "ProcessPoolExecutor", no_process)
+    announced: list[tuple[str, Any]] = []
+    sharer = _runner(plan, _board(plan), 0, announced)
+    made = await sharer._replan_of(sharer.board.inputs(DEAD))  # type: ignore[union-attr]
+    assert made is not None and made[1].startswith(
+        ", shared with the fleet (computed in a thread: no process for it:")
+    assert solves.count == 1 and len(announced) == 1
 
 
 async def test_a_share_that_does_not_come_is_computed_after_the_wait(

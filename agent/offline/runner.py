@@ -17,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import Awaitable, Callable
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 import numpy as np
@@ -220,12 +221,18 @@ class OfflineRunner:
         if sharer is None:
             return await self._solve(inputs), ""
         if sharer == self.robot:
-            routes = await routes_apart(inputs)
+            try:
+                routes, where = await routes_apart(inputs), ""
+            except (OSError, BrokenProcessPool) as error:
+                # no process to be had (no /dev/shm for its locks, a worker killed): the
+                # same re-plan in a thread, later in a crowd, and the event says so
+                routes = await self._solve(inputs)
+                where = f" (computed in a thread: no process for it: {error})"
             share = ReplanShare(self.robot, self.incarnation, inputs.dead, inputs.digest,
                                 tuple(routes), tuple(len(r) for r in routes.values()),
                                 pack_routes(list(routes.values())))
             self._announce(keys.replan_share(self.bus.mission, self.robot), share)
-            return routes, ", shared with the fleet"
+            return routes, f", shared with the fleet{where}"
         wait = share_wait(len(inputs.survivors))
         deadline = time.monotonic() + wait
         self.phase = f"waiting for robot {sharer}'s re-plan"
