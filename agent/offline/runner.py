@@ -221,6 +221,7 @@ class OfflineRunner:
         if sharer is None:
             return await self._solve(inputs), ""
         if sharer == self.robot:
+            routes: Routes
             try:
                 routes, where = await routes_apart(inputs), ""
             except (OSError, BrokenProcessPool) as error:
