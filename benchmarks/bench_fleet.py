@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/bench_fleet.py latency [--fleets 4 --robots 6]
     .venv/bin/python benchmarks/bench_fleet.py startup [--robots 10]     # also RSS per process
     .venv/bin/python benchmarks/bench_fleet.py big [--robots 30 --time-scale 0]
+    .venv/bin/python benchmarks/bench_fleet.py replan [--robots 20,40]
     .venv/bin/python benchmarks/bench_fleet.py all
 
 latency: SIGKILL agents one at a time in running fleets (``mstc up`` at time scale 1 so the
@@ -11,7 +12,12 @@ token and the first DeathNotice a peer publishes; it also counts death notices a
 that were never killed (false suspicions). startup: wall time from starting ``mstc up`` to
 every agent having announced itself, then the resident memory of each process. big: a full
 mission (default 30 robots on grid30x20, 2400 sub-cells) through ``mstc up``: wall time and
-the executed makespan over the planner's makespan.
+the executed makespan over the planner's makespan. replan: for each fleet size, robot k/2
+killed at 30 % coverage (time scale 0, opt on grid30x20), once with the crowd's re-plan
+shared by its lowest survivor (the default) and once with every survivor computing it
+(``--replan-share-from 1000``), one after the other: seconds from the death being known to
+the first and the last survivor's re-plan, how the survivors had it, and the mission's wall
+time.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ import argparse
 import asyncio
 import json
 import os
+import re
 import signal
 import socket
 import statistics
@@ -297,11 +304,51 @@ def bench_big(args: argparse.Namespace, root: Path) -> None:
     print(f"load average after the run: {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 
+_SECONDS = re.compile(r"^\[ *([\d.]+)s\] ")
+
+
+def _at(line: str) -> float | None:
+    """The mission time ``mstc up`` stamps its line with."""
+    found = _SECONDS.match(line)
+    return None if found is None else float(found.group(1))
+
+
+def bench_replan(args: argparse.Namespace, root: Path) -> None:
+    sizes = [int(n) for n in str(args.robots).split(",")]
+    for robots in sizes:
+        for label, extra in (("shared", ()), ("every survivor",
+                                               ("--agent-arg=--replan-share-from=1000",))):
+            run_dir = root / f"replan-{robots}-{label.replace(' ', '-')}"
+            up = UpProcess(run_dir, "-n", str(robots), "--world", args.world, "--algo", "opt",
+                           "--time-scale", "0", "--kill", f"{robots // 2}@progress=30",
+                           *extra, *[f"--agent-arg={a}" for a in args.agent_arg])
+            code = up.proc.wait(1800)
+            wall = time.monotonic() - up.t0
+            up.stop()
+            lines = [line for _, line in up.lines]
+            known = next((_at(ln) for ln in lines if "declared dead" in ln), None)
+            replans = [ln for ln in lines if " re-planned: " in ln]
+            times = sorted(t for t in map(_at, replans) if t is not None)
+            hows: dict[str, int] = {}
+            for ln in replans:
+                how = re.sub(r"robot \d+", "robot R", ln.split("moves to walk", 1)[-1]
+                             .split(" (reports", 1)[0].lstrip(", ")) or "computed alone"
+                hows[how] = hows.get(how, 0) + 1
+            verdict = next((ln.split(":", 1)[1].split("—")[0].strip() for ln in lines
+                            if ln.startswith("mission ")), "no verdict")
+            after = ("no re-plan" if known is None or not times else
+                     f"{times[0] - known:.1f}-{times[-1] - known:.1f} s after the death")
+            print(f"{robots} robots, {label:14s}: exit {code}, {verdict}, re-planned {after}, "
+                  f"{len(replans)} re-plans ({', '.join(f'{n} {h}' for h, n in hows.items())}),"
+                  f" wall {wall:.1f} s", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("what", choices=("latency", "startup", "big", "all"))
-    parser.add_argument("--robots", type=int, default=None)
+    parser.add_argument("what", choices=("latency", "startup", "big", "replan", "all"))
+    parser.add_argument("--robots", default=None,
+                        help="fleet size (replan: sizes separated by commas, default 20,40)")
     parser.add_argument("--fleets", type=int, default=4)
     parser.add_argument("--hang", action="store_true",
                         help="latency: SIGSTOP (a hung robot) instead of SIGKILL")
@@ -315,14 +362,16 @@ def main() -> None:
     parser.add_argument("--agent-arg", action="append", default=[],
                         help="extra agent option, e.g. --agent-arg=--dead-after=0.5")
     args = parser.parse_args()
-    defaults = {"latency": 6, "startup": 10, "big": 30}
+    defaults: dict[str, int | str] = {"latency": 6, "startup": 10, "big": 30, "replan": "20,40"}
     with tempfile.TemporaryDirectory(prefix="bench_fleet_") as tmp:
         root = Path(tmp) if args.keep is None else args.keep
         for what in (("latency", "startup", "big") if args.what == "all" else (args.what,)):
             sub = argparse.Namespace(**vars(args))
             sub.robots = args.robots or defaults[what]
-            {"latency": bench_latency, "startup": bench_startup, "big": bench_big}[what](
-                sub, root)
+            if what != "replan":
+                sub.robots = int(sub.robots)
+            {"latency": bench_latency, "startup": bench_startup, "big": bench_big,
+             "replan": bench_replan}[what](sub, root)
 
 
 if __name__ == "__main__":
