@@ -110,9 +110,12 @@ def test_a_crowd_walks_the_re_plan_its_lowest_survivor_shares(free_port: int,
     by_epoch: dict[str, list[tuple[int, str, str]]] = {}
     for robot, dead, digest, how in lines:
         by_epoch.setdefault(dead, []).append((int(robot), digest, how))
+    walked_a_share = 0
     for dead, said in by_epoch.items():
         assert len({digest for _, digest, _ in said}) == 1, said
         # robot 0 survives both deaths: it computes, everyone else walks its share
         hows = {robot: how for robot, _, how in said}
         assert hows.pop(0) == ", shared with the fleet", (dead, said)
         assert set(hows.values()) <= {", shared by robot 0"}, (dead, said)
+        walked_a_share += len(hows)
+    assert walked_a_share, lines  # not only the sharer re-planned

@@ -15,9 +15,10 @@ re-plan at once costs the fleet survivors x its CPU: 99 survivors of a 100-robot
 cores re-planned 179-211 s after the death (docs/operations.md). There the lowest survivor
 of the epoch (its *sharer*) computes it alone, in a process of its own (``routes_apart``),
 and shares it (ReplanShare, with the digest of the reports); the others check it against
-their own reports and walk it. A share that does
-not come within ``share_wait`` (the sharer hung, its message lost for good) is computed
-locally after all: the same result, later. The trade-off: a survivor of a crowded fleet
+their own reports and walk it. A share that is unusable, or that has not come within
+``share_wait`` (a safety net for a slow sharer: one that hangs for good is declared dead, a
+new epoch with a new sharer), is computed locally after all: the same result, later. The
+trade-off: a survivor of a crowded fleet
 trusts the sharer's arithmetic (its inputs and the cover it promises are checked, the
 routes' lengths are not); the fleet's robots are authenticated (docs/security.md).
 """
