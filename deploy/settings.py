@@ -54,6 +54,14 @@ HEARTBEAT_BUDGET = 2500.0  # heartbeat deliveries per second per core
 ANNOUNCE_BUDGET = 1000.0  # re-announced statuses delivered per second per core
 MAX_ANNOUNCE_S = 5.0
 HEARTBEATS_PER_TIMEOUT = 4
+# Where the budget lengthens the heartbeat period, the heartbeat timeout (the starvation rule
+# below: 30 s at 60 robots on 2 cores) is far longer still, and heartbeats at the budget's
+# period were nearly half of what a waiting agent received (60 robots, waiting for a re-plan:
+# 82 heartbeats a second against 33 each of statuses, death notices and re-plan reports).
+# Their period is then at least the timeout over this many: a hung robot is caught no later,
+# and 60 robots send a fifth of the heartbeats. Smaller crowds keep 0.2 s (the chaos
+# campaigns' sizes, whose ORMSTC loss repair rides on heartbeats).
+STRETCHED_HEARTBEATS_PER_TIMEOUT = 8
 # A starved router or agent delays every heartbeat behind it: the heartbeat timeout is also
 # at least this much per agent per core (60 agents on 2 cores: 47 fenced at 5 s, 56 at 9 s).
 STARVED_S_PER_AGENT = 1.0
@@ -324,6 +332,11 @@ def fleet_timing(robots: int, cores: int | None = None, *, lease_ms: int | None 
             start_timeout=start_timeout or 30.0 + robots)
     squared = robots * robots
     heartbeat = _centi(max(DEFAULT_HEARTBEAT_PERIOD, squared / (HEARTBEAT_BUDGET * n)))
+    dead = (max(CROWDED_DEAD_AFTER_S, HEARTBEATS_PER_TIMEOUT * heartbeat,
+                round(STARVED_S_PER_AGENT * robots / n, 1))
+            if dead_after is None else dead_after)
+    if heartbeat > DEFAULT_HEARTBEAT_PERIOD:
+        heartbeat = max(heartbeat, _centi(dead / STRETCHED_HEARTBEATS_PER_TIMEOUT))
     announce = _centi(min(MAX_ANNOUNCE_S, max(DEFAULT_ANNOUNCE_PERIOD,
                                               squared / (ANNOUNCE_BUDGET * n))))
     # The last agent starts about robots x BOOT_CPU_S / cores after the first on an idle
@@ -336,9 +349,7 @@ def fleet_timing(robots: int, cores: int | None = None, *, lease_ms: int | None 
     return FleetTiming(
         lease_ms=(max(CROWDED_LEASE_MS, int(round(LEASE_MS_PER_AGENT * robots / n, -3)))
                   if lease_ms is None else lease_ms),
-        dead_after=(max(CROWDED_DEAD_AFTER_S, HEARTBEATS_PER_TIMEOUT * heartbeat,
-                        round(STARVED_S_PER_AGENT * robots / n, 1))
-                    if dead_after is None else dead_after),
+        dead_after=dead,
         heartbeat_period=heartbeat, announce_period=announce, token_grace=CROWDED_TOKEN_GRACE_S,
         boot_timeout=boot,
         # the first agent's own gather ends once the last one's boot timeout has passed
