@@ -37,10 +37,16 @@ class Announcer:
     def messages(self) -> list[Any]:
         return list(self._state.values())
 
+    def repeats(self, key: str) -> bool:
+        """Whether the message held on ``key`` is re-published each period (it is answered
+        to queries either way); every one here, a subclass may hold some back."""
+        return True
+
     def announce(self) -> None:
-        """Publish every held message once more."""
+        """Publish every held message that :meth:`repeats` once more."""
         for key, msg in list(self._state.items()):
-            self.bus.publish(key, msg)
+            if self.repeats(key):
+                self.bus.publish(key, msg)
 
     async def run(self) -> None:
         """Serve the state queryable and re-announce periodically until cancelled."""

@@ -22,7 +22,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Coroutine
 from typing import Any, ClassVar
 
-from agent.core.announcer import StateAnnouncer
+from agent.core.announcer import StateAnnouncer, holds_deaths
 from agent.core.config import AgentConfig
 from agent.core.errors import AgentError, FencedError, LeaveRequested
 from bus import keys
@@ -68,7 +68,9 @@ class AgentLife(ABC):
     def _make_announcer(self, bus: Bus,
                         state: Callable[[], AgentState] | None = None) -> StateAnnouncer:
         return StateAnnouncer(bus, keys.state(bus.mission, self.robot),
-                              self.config.announce_period, state)
+                              self.config.announce_period, state,
+                              death_holder=lambda: holds_deaths(
+                                  self.robot, self.liveness.detector.alive()))
 
     def _event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
         self.bus.publish(keys.events(self.bus.mission, self.robot),
