@@ -21,6 +21,7 @@ from deploy.settings import (
     CROWDED_AGENTS_PER_CORE,
     HEARTBEAT_BUDGET,
     HEARTBEATS_PER_TIMEOUT,
+    STRETCHED_HEARTBEATS_PER_TIMEOUT,
     FleetTiming,
     fleet_timing,
 )
@@ -46,6 +47,25 @@ def test_crowded_fleets_keep_heartbeat_and_status_deliveries_within_a_budget_per
                 t.announce_period in (0.5, 5.0)
             assert t.dead_after >= HEARTBEATS_PER_TIMEOUT * t.heartbeat_period
             assert t.lease_ms >= 5000 and t.dead_after >= 5.0
+
+
+def test_a_crowd_whose_heartbeat_the_budget_lengthens_beats_at_most_8_times_a_timeout(
+        ) -> None:
+    for cores in (1, 2, 4):
+        for robots in range(CROWDED_AGENTS_PER_CORE * cores + 1, 301, 7):
+            t = fleet_timing(robots, cores)
+            assert t.heartbeat_period is not None
+            budget = robots ** 2 / (HEARTBEAT_BUDGET * cores)
+            if budget <= 0.2:  # the chaos campaigns' sizes keep the agents' own period
+                assert t.heartbeat_period == 0.2
+            else:
+                assert t.heartbeat_period >= t.dead_after / STRETCHED_HEARTBEATS_PER_TIMEOUT
+                assert t.heartbeat_period >= budget
+                assert t.heartbeat_period <= t.dead_after / STRETCHED_HEARTBEATS_PER_TIMEOUT \
+                    + 0.01 or t.heartbeat_period <= budget + 0.01
+    assert fleet_timing(60, 2).heartbeat_period == 3.75  # 30 s timeout / 8
+    # a timeout given shorter than the derived one never stretches the heartbeat beyond it
+    assert fleet_timing(100, 2, dead_after=2.0).heartbeat_period == 2.0
 
 
 def test_timers_grow_with_the_fleet_and_shrink_with_the_cores() -> None:
