@@ -100,7 +100,10 @@ MOVE_SIM_S = 2.5  # forward 1.93 s plus a share of turns (docs/simhw.md)
 # first re-plan, 60 of them 114 s, 100 of them 147-180 s to the last, and 179-211 s since
 # the re-plan is refined (docs/operations.md), so a crowded fleet's stall timeout allows
 # this much per agent per core beyond the default (60 robots: 200 s, 100 robots: 320 s;
-# about half as much again as those runs needed, for a loaded host).
+# about half as much again as those runs needed, for a loaded host). Since a crowd computes
+# the re-plan once and its own traffic was cut (docs/operations.md, "The crowd's own
+# traffic"), 60 and 100 robots re-plan 7-15 s after a death on an idle host; the allowance
+# stays for hosts shared with other work, where the agents, niced, yield.
 REPLAN_S_PER_AGENT = 6.0
 
 _KILL_RE = re.compile(
