@@ -14,6 +14,7 @@ import pytest
 
 from agent.offline import replan as replan_module
 from agent.offline import runner as runner_module
+from agent.offline.driver import next_in_turn
 from agent.offline.plan import compute_plan
 from agent.offline.replan import ReplanBoard, ReplanInputs, share_wait
 from agent.offline.runner import OfflineRunner
@@ -257,3 +258,81 @@ async def test_an_unusable_share_is_computed_at_once(monkeypatch: pytest.MonkeyP
 def test_the_wait_grows_with_the_fleet() -> None:
     assert share_wait(3) == 10.0
     assert share_wait(99) == pytest.approx(297.0)
+
+
+# --- what a crowded survivor pulls while it waits for the reports -------------------------
+
+
+class _CrowdPulls:
+    """Records a crowded runner's pulls (agent.offline.runner.CrowdPulls)."""
+
+    def __init__(self) -> None:
+        self.turns = 0
+        self.asked: list[list[int]] = []
+
+    async def in_turn(self) -> None:
+        self.turns += 1
+
+    async def each(self, robots: Any) -> None:
+        self.asked.append(list(robots))
+
+
+def _waiting_runner(plan: Plan, crowd: _CrowdPulls | None,
+                    refreshes: list[float]) -> OfflineRunner:
+    """Robot 0 after robot 1's death; only robot 2's report has come."""
+    board = ReplanBoard(plan, DropCounter(), share_from=3)
+    covered = np.zeros(plan.cycle.n, dtype=bool)
+    report = ReplanReport(2, 1, DEAD, plan.robots[2].start_index, (), pack_covered(covered))
+    assert board.on_report(keys.replan("m", 2), report)
+    runner = _runner(plan, board, 0, [])
+    runner.machine.pending_route = ()  # type: ignore[misc]
+    runner.machine.covered = covered
+    runner._refresh_period = 1.0
+
+    async def refresh() -> None:
+        refreshes.append(asyncio.get_running_loop().time())
+
+    runner._refresh = refresh
+    runner._crowd = crowd
+    return runner
+
+
+async def test_a_crowded_survivor_pulls_only_the_reports_it_lacks_and_not_at_once() -> None:
+    plan = _plan()
+    refreshes: list[float] = []
+    crowd = _CrowdPulls()
+    runner = _waiting_runner(plan, crowd, refreshes)
+    task = asyncio.create_task(runner._replan())
+    await asyncio.sleep(0.2)
+    # every survivor has just published its report: nothing pulled yet
+    assert crowd.asked == [] and refreshes == []
+    runner._refreshed = -float("inf")  # the period is over
+    await asyncio.sleep(0.2)
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert crowd.asked == [[3]]  # robot 3's report alone is missing (0 is this robot's own)
+    assert refreshes == [] and crowd.turns == 0
+
+
+async def test_a_small_fleets_survivor_pulls_every_state_at_once() -> None:
+    plan = _plan()
+    refreshes: list[float] = []
+    runner = _waiting_runner(plan, None, refreshes)
+    task = asyncio.create_task(runner._replan())
+    await asyncio.sleep(0.2)
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert len(refreshes) == 1
+
+
+def test_pulls_in_turn_ask_every_robot_within_k_over_count_pulls() -> None:
+    peers = [r for r in range(100) if r not in (10, 50)]
+    turn, asked = 0, []
+    for _ in range(4):
+        chosen, turn = next_in_turn(peers, turn, 25)
+        assert len(chosen) == 25 and len(set(chosen)) == 25
+        asked += chosen
+    assert set(asked) == set(peers)  # 100 asks of 98 robots: two asked twice
+    assert next_in_turn(peers[:7], 40, 25) == (peers[:7], 0)  # fewer than asked: all of them

@@ -17,7 +17,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import logging
-from collections.abc import Collection, Coroutine, Mapping
+from collections.abc import Collection, Coroutine, Mapping, Sequence
 from typing import Any
 
 from agent.core.config import AgentConfig
@@ -58,9 +58,22 @@ _log = logging.getLogger("mstc.agent")
 PULL_ROBOTS = 25
 
 
+def next_in_turn(peers: Sequence[int], turn: int, count: int) -> tuple[list[int], int]:
+    """The ``count`` robots of ``peers`` from position ``turn`` on (wrapping round; all of them
+    if they are fewer), and the position to start from next time."""
+    if len(peers) <= count:
+        return list(peers), 0
+    start = turn % len(peers)
+    return [*peers[start:], *peers[:start]][:count], start + count
+
+
 def pull_period(announce_period: float, k: int) -> float:
-    """How often a robot pulls every robot's state (``refresh``) as a backstop for lost
-    messages: once per announce period, and in a big fleet once per k / PULL_ROBOTS periods.
+    """How often a robot pulls robots' state as a backstop for lost messages: once per
+    announce period, and in a big fleet once per k / PULL_ROBOTS periods. Beyond PULL_ROBOTS
+    robots a robot that is driving asks PULL_ROBOTS of them at a time (``OfflineAgent.in_turn``)
+    and one waiting for re-plan reports only those whose report it lacks (``each``): a
+    100-robot fleet whose survivors all pulled everyone's state while they waited for a
+    re-plan spent a third of each agent's CPU answering those queries (py-spy, 2026-12-05).
     Every pull asks every robot for its state (coverage included), so the fleet's pulls grow
     with k squared: 60 robots pulling on every status heard never agreed within 100 s, and
     60 robots whose sections were done pulling every announce period (1.8 s) kept the others
@@ -87,6 +100,7 @@ class OfflineAgent(BodyAgent):
         self.board: ReplanBoard | None = None
         self.bodies: Bodies | None = None
         self._pulled = -float("inf")  # self.now() of the last pull while gathering
+        self._turn = 0  # where the next crowd pull in turn starts (next_in_turn)
 
     # --- plumbing -------------------------------------------------------------------------
 
@@ -181,6 +195,18 @@ class OfflineAgent(BodyAgent):
         """Pull one robot's re-learnable state: a survivor waiting for the sharer's re-plan
         asks the sharer only (every robot's, in a crowd, is what starves the sharer)."""
         await self._pull(keys.state(self.bus.mission, robot))
+
+    async def in_turn(self) -> None:
+        """A crowd's watcher's backstop pull: PULL_ROBOTS live robots, the next ones in turn
+        (``next_in_turn``), so every robot is asked within k / PULL_ROBOTS pulls. Every robot's
+        state carries all the coverage it knows, so a few answer for most of the fleet."""
+        peers = [r for r in self.participants() if r != self.robot and r not in self.peers.dead]
+        chosen, self._turn = next_in_turn(peers, self._turn, PULL_ROBOTS)
+        await self.each(chosen)
+
+    async def each(self, robots: Sequence[int]) -> None:
+        """Pull the state of each of ``robots``, one query each, side by side."""
+        await asyncio.gather(*(self.pull(robot) for robot in robots))
 
     async def _pull(self, key: str) -> None:
         replies: list[Received[Any]] = await self.bus.query(
@@ -281,6 +307,7 @@ class OfflineAgent(BodyAgent):
             self.bodies = Bodies.of_plan(self.plan, self.robot)
         self.runner = OfflineRunner(self.bus, self.hardware, self.peers, machine,
                                     self.incarnation, refresh=self.refresh, pull=self.pull,
+                                    crowd=self if self.config.k > PULL_ROBOTS else None,
                                     refresh_period=pull_period(self.config.announce_period,
                                                                self.config.k),
                                     board=self.board, announce=self.announcer.set,

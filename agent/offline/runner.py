@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Sequence
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -47,12 +47,24 @@ BUMP_PATIENCE_S = 30.0
 BUMP_RETRY_S = 0.05
 
 
+class CrowdPulls(Protocol):
+    """How a robot of a crowded fleet pulls what it may have lost: never every robot's state
+    at once (agent.offline.driver.OfflineAgent)."""
+
+    async def in_turn(self) -> None:
+        """Some robots' state, the next ones in turn (a watcher's backstop)."""
+
+    async def each(self, robots: Sequence[int]) -> None:
+        """The state of each of ``robots`` (the survivors whose report is missing)."""
+
+
 class OfflineRunner:
     """Walk the plan, take over dead robots' sections, stop when all is covered."""
 
     def __init__(self, bus: Bus, hardware: Hardware, peers: PeerTable, machine: PlanRobot,
                  incarnation: int, *, refresh: Callable[[], Awaitable[None]],
                  refresh_period: float, pull: Callable[[int], Awaitable[None]] | None = None,
+                 crowd: CrowdPulls | None = None,
                  board: ReplanBoard | None = None,
                  announce: Callable[[str, Any], None] | None = None,
                  bodies: Bodies | None = None) -> None:
@@ -67,6 +79,7 @@ class OfflineRunner:
         self.phase = "covering"
         self._refresh = refresh
         self._pull = pull
+        self._crowd = crowd
         self._refresh_period = refresh_period
         self._targets: dict[int, int] = {}  # cycle index -> dead robot whose takeover ends there
         self._section_announced = False
@@ -111,7 +124,7 @@ class OfflineRunner:
                     continue
                 if time.monotonic() - self._refreshed >= self._refresh_period:
                     self._refreshed = time.monotonic()
-                    await self._refresh()
+                    await (self._refresh() if self._crowd is None else self._crowd.in_turn())
                 await self.peers.wait_news(self._refresh_period)
                 continue
             self.phase = "covering" if not self.machine.section_done else "taking over"
@@ -181,6 +194,10 @@ class OfflineRunner:
         self.board.on_report(keys.replan(self.bus.mission, self.robot), mine)
         self._announce(keys.replan(self.bus.mission, self.robot), mine)
         stopped = time.monotonic()
+        if self._crowd is not None:
+            # every survivor publishes its report now: a pull at once, by every survivor of
+            # a crowd, asked each of them for all it holds at the worst moment
+            self._refreshed = stopped
         while self._dead() == dead and not m.all_covered:
             if not self.board.missing(dead):
                 inputs = self.board.inputs(dead)
@@ -204,12 +221,16 @@ class OfflineRunner:
                                               f"{reported - stopped:.1f} s, re-plan "
                                               f"{done - reported:.1f} s)")
                 return
-            await self._wait_reports()
+            await self._wait_reports(dead)
 
-    async def _wait_reports(self) -> None:
+    async def _wait_reports(self, dead: tuple[int, ...]) -> None:
         if time.monotonic() - self._refreshed >= self._refresh_period:
             self._refreshed = time.monotonic()
-            await self._refresh()
+            if self._crowd is None:
+                await self._refresh()
+            else:
+                assert self.board is not None
+                await self._crowd.each(self.board.missing(dead))
         await self.peers.wait_news(self._refresh_period)
 
     async def _replan_of(self, inputs: ReplanInputs) -> tuple[Routes, str] | None:
