@@ -184,6 +184,8 @@ async def test_the_sharer_computes_once_and_announces_what_the_others_walk(
     sharer = _runner(plan, _board(plan), 0, announced)
     inputs = sharer.board.inputs(DEAD)  # type: ignore[union-attr]
     made = await sharer._replan_of(inputs)
+    # no note: the worker led a session of its own (routes_in_own_session), so a niced
+    # agent's autogroup does not hold it back
     assert made is not None and made[1] == ", shared with the fleet"
     # computed in a process of its own (routes_apart): nothing here, the same routes
     replan = rebalance(inputs.cycle, inputs.covered, inputs.survivors, inputs.rank)

@@ -28,6 +28,7 @@ from __future__ import annotations
 import asyncio
 import hashlib
 import multiprocessing
+import os
 from collections.abc import Collection, Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -224,15 +225,32 @@ class ReplanInputs:
         return {r: replan.routes[r] for r in sorted(replan.routes)}
 
 
-async def routes_apart(inputs: ReplanInputs) -> dict[int, tuple[int, ...]]:
+def routes_in_own_session(inputs: ReplanInputs) -> tuple[dict[int, tuple[int, ...]], str]:
+    """``inputs.routes()``, run by the worker of :func:`routes_apart` once it leads a session
+    of its own; the second value says why it could not ("" when it does).
+
+    Linux shares the CPU between autogroups (one per session) before niceness counts, and a
+    crowded fleet's agents are niced in theirs (deploy.autogroup): a worker in its agent's
+    session got that agent's hundredth of the CPU, 1 s of CPU in 36 s of a 100-robot fleet's
+    wait for it. A new session's autogroup starts at niceness 0, the router's weight: the
+    fleet's one computation everyone waits for, about a second of CPU once per death."""
+    try:
+        os.setsid()
+        note = ""
+    except OSError as error:  # a session leader already; the re-plan is the same either way
+        note = f" (in its agent's session: {error})"
+    return inputs.routes(), note
+
+
+async def routes_apart(inputs: ReplanInputs) -> tuple[dict[int, tuple[int, ...]], str]:
     """``inputs.routes()`` computed in a process of its own (spawned: the agent's Zenoh
-    threads are not forked). The sharer of a crowded fleet computes there: in a thread of
+    threads are not forked), in a session of its own (:func:`routes_in_own_session`, whose
+    note it returns too). The sharer of a crowded fleet computes there: in a thread of
     its agent the re-plan waited for the interpreter lock while the agent answered its
-    peers' messages and queries, and 0.9 s of CPU took 177 s with 59 survivors on 2 cores;
-    a process gets the CPU share of a process."""
+    peers' messages and queries, and 0.9 s of CPU took 177 s with 59 survivors on 2 cores."""
     pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
     try:
-        return await asyncio.get_running_loop().run_in_executor(pool, ReplanInputs.routes,
+        return await asyncio.get_running_loop().run_in_executor(pool, routes_in_own_session,
                                                                 inputs)
     finally:
         # the worker exits once it is done; the agent does not wait for it here

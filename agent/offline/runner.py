@@ -244,7 +244,7 @@ class OfflineRunner:
         if sharer == self.robot:
             routes: Routes
             try:
-                routes, where = await routes_apart(inputs), ""
+                routes, where = await routes_apart(inputs)
             except (OSError, BrokenProcessPool) as error:
                 # no process to be had (no /dev/shm for its locks, a worker killed): the
                 # same re-plan in a thread, later in a crowd, and the event says so
