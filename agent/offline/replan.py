@@ -225,30 +225,38 @@ class ReplanInputs:
         return {r: replan.routes[r] for r in sorted(replan.routes)}
 
 
-def routes_in_own_session(inputs: ReplanInputs) -> tuple[dict[int, tuple[int, ...]], str]:
-    """``inputs.routes()``, run by the worker of :func:`routes_apart` once it leads a session
-    of its own; the second value says why it could not ("" when it does).
+# In a worker of routes_apart: why it could not lead a session of its own ("" when it does).
+_session_note = ""
+
+
+def _lead_own_session() -> None:
+    """The worker's initializer, before it imports the planner: leave the agent's session.
 
     Linux shares the CPU between autogroups (one per session) before niceness counts, and a
     crowded fleet's agents are niced in theirs (deploy.autogroup): a worker in its agent's
     session got that agent's hundredth of the CPU, 1 s of CPU in 36 s of a 100-robot fleet's
     wait for it. A new session's autogroup starts at niceness 0, the router's weight: the
     fleet's one computation everyone waits for, about a second of CPU once per death."""
+    global _session_note
     try:
         os.setsid()
-        note = ""
     except OSError as error:  # a session leader already; the re-plan is the same either way
-        note = f" (in its agent's session: {error})"
-    return inputs.routes(), note
+        _session_note = f" (in its agent's session: {error})"
+
+
+def routes_in_own_session(inputs: ReplanInputs) -> tuple[dict[int, tuple[int, ...]], str]:
+    """``inputs.routes()`` in the worker, and why it is not in a session of its own ("")."""
+    return inputs.routes(), _session_note
 
 
 async def routes_apart(inputs: ReplanInputs) -> tuple[dict[int, tuple[int, ...]], str]:
     """``inputs.routes()`` computed in a process of its own (spawned: the agent's Zenoh
-    threads are not forked), in a session of its own (:func:`routes_in_own_session`, whose
-    note it returns too). The sharer of a crowded fleet computes there: in a thread of
+    threads are not forked), in a session of its own (:func:`_lead_own_session`; the note
+    says why not). The sharer of a crowded fleet computes there: in a thread of
     its agent the re-plan waited for the interpreter lock while the agent answered its
     peers' messages and queries, and 0.9 s of CPU took 177 s with 59 survivors on 2 cores."""
-    pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_lead_own_session)
     try:
         return await asyncio.get_running_loop().run_in_executor(pool, routes_in_own_session,
                                                                 inputs)
