@@ -195,8 +195,9 @@ class OfflineRunner:
         self._announce(keys.replan(self.bus.mission, self.robot), mine)
         stopped = time.monotonic()
         if self._crowd is not None:
-            # every survivor publishes its report now: a pull at once, by every survivor of
-            # a crowd, asked each of them for all it holds at the worst moment
+            # every survivor publishes its report at this moment, and re-announces it: in a
+            # crowd a pull now (each survivor asking the others for all they hold) only
+            # competes with them; the first pull for missing reports waits a period
             self._refreshed = stopped
         while self._dead() == dead and not m.all_covered:
             if not self.board.missing(dead):
