@@ -289,7 +289,7 @@ def _waiting_runner(plan: Plan, crowd: _CrowdPulls | None,
     runner = _runner(plan, board, 0, [])
     runner.machine.pending_route = ()  # type: ignore[misc]
     runner.machine.covered = covered
-    runner._refresh_period = 1.0
+    runner._refresh_period = 30.0  # no second pull within a test, however loaded the host
 
     async def refresh() -> None:
         refreshes.append(asyncio.get_running_loop().time())
