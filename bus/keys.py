@@ -174,6 +174,15 @@ def all_replan_shares(mission: str) -> str:
     return wildcard("replanned", mission)
 
 
+def plan_share(mission: str, robot: int) -> str:
+    """The first plan a crowded offline fleet's lowest robot computes for all (PlanShare)."""
+    return build("planned", mission, robot)
+
+
+def all_plan_shares(mission: str) -> str:
+    return wildcard("planned", mission)
+
+
 def state(mission: str, robot: int) -> str:
     """Queryable answering a robot's current state messages (late joiners, router restart)."""
     return build("state", mission, robot)

@@ -119,3 +119,23 @@ def test_a_crowd_walks_the_re_plan_its_lowest_survivor_shares(free_port: int,
         assert set(hows.values()) <= {", shared by robot 0"}, (dead, said)
         walked_a_share += len(hows)
     assert walked_a_share, lines  # not only the sharer re-planned
+
+
+def test_a_crowd_flies_the_first_plan_its_lowest_robot_shares(free_port: int,
+                                                              tmp_path: Path) -> None:
+    """With sharing from 2 participants on (a crowd shares from 26), robot 0 alone computes
+    the balanced plan and the others fly it as shared; every share is dropped on the wire,
+    so the others pull it from robot 0's announcer. The digests agree and the fleet covers
+    the map."""
+    result = run_balanced(free_port, tmp_path / "run", "--agent-arg=--plan-share-from=2",
+                          faults="seed=5;planned.drop=1")
+    check_complete(result, tmp_path / "run")
+    said: dict[int, tuple[str, str]] = {}
+    for log in (tmp_path / "run" / "logs").glob("agent-*.log"):
+        for digest, how in re.findall(r"plan (\w{12}) makespan \d+ moves, mine \d+(.*?) \[",
+                                      log.read_text()):
+            said[int(log.stem.split("-")[1])] = (digest, how)
+    assert sorted(said) == [0, 1, 2, 3, 4], said
+    assert len({digest for digest, _ in said.values()}) == 1, said
+    assert said.pop(0)[1] == ", shared with the fleet", said
+    assert {how for _, how in said.values()} == {", shared by robot 0"}, said

@@ -37,6 +37,7 @@ from bus.messages import (
     OrmstcStart,
     OrmstcTreeEdge,
     OrmstcWithdrawal,
+    PlanShare,
     Progress,
     RadioStats,
     ReplanReport,
@@ -46,8 +47,10 @@ from bus.messages import (
     RobotTruth,
     SonarRays,
     TreeReport,
+    join_moves,
     make_world_state,
     pack_covered,
+    pack_moves,
     pack_routes,
 )
 from bus.messages.schema import (
@@ -77,6 +80,9 @@ EXAMPLES: dict[type[Any], Any] = {ex.__class__: ex for ex in (
                {"hb.decode": 2}, (((0, 0), (0, 1)),), ((1, 1),), "dfs", 4),
     ReplanReport(3, 2, (1, 4), 7, (8, 9, 10), pack_covered(np.arange(16) < 8)),
     ReplanShare(0, 2, (1, 4), "ab" * 32, (0, 2, 3), (2, 0, 1), pack_routes([[5, 6], [], [9]])),
+    PlanShare(0, 2, "cd" * 32, "ab" * 32, (0, 0), pack_moves([(0, 0), (0, 1), (1, 1), (1, 0)]),
+              (1, 0), join_moves([[(0, 0), (0, 1)], [(1, 1)]]), (0, 0), ("ccw3", ""),
+              ("balanced: a note",), ""),
     HwCommand(11, 3, 2, "sense", ("front", "left")),
     HwReply(11, 3, "ok", "", (1, 2, 0), (0.5, 0.25), {"front": 3, "left": None}, False, 4.0),
     AdminCommand("fail", 3),

@@ -6,10 +6,14 @@ from __future__ import annotations
 
 import asyncio
 import time
+from types import SimpleNamespace
+from typing import Any
 
 import pytest
 
+from agent.offline import driver as driver_module
 from agent.offline.driver import OfflineAgent
+from agent.offline.options import OfflineOptions
 
 PLAN_S = 1.0
 TICK_S = 0.05
@@ -19,18 +23,23 @@ class _Planned(Exception):
     """Stands for the rest of the mission: the test stops once the plan is made."""
 
 
-async def test_the_event_loop_keeps_running_while_the_first_plan_is_computed() -> None:
+async def test_the_event_loop_keeps_running_while_the_first_plan_is_computed(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     agent = OfflineAgent.__new__(OfflineAgent)  # only _mission's planning step is driven
+    agent.roster = {0: (0, 0), 1: (0, 2)}  # a small fleet: each robot computes the plan
+    agent.options = OfflineOptions(world="office")
+    agent.config = SimpleNamespace(algo="opt", seed=0)  # type: ignore[assignment]
+    agent.grid = None  # type: ignore[assignment]
 
     async def gather() -> list[tuple[int, int]]:
         return [(0, 0), (0, 2)]
 
-    def plan(starts: list[tuple[int, int]]) -> None:
+    def plan(*args: Any) -> None:
         time.sleep(PLAN_S)  # CPU-bound planning holds the thread it runs on
         raise _Planned
 
     agent._gather = gather  # type: ignore[method-assign]
-    agent._plan = plan  # type: ignore[method-assign,assignment]
+    monkeypatch.setattr(driver_module, "fleet_plan", plan)
     ticks = 0
 
     async def heartbeat() -> None:

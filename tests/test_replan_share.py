@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from agent.offline import replan as replan_module
+from agent.offline import apart as apart_module
 from agent.offline import runner as runner_module
 from agent.offline.driver import next_in_turn
 from agent.offline.plan import compute_plan
@@ -184,7 +184,7 @@ async def test_the_sharer_computes_once_and_announces_what_the_others_walk(
     sharer = _runner(plan, _board(plan), 0, announced)
     inputs = sharer.board.inputs(DEAD)  # type: ignore[union-attr]
     made = await sharer._replan_of(inputs)
-    # no note: the worker led a session of its own (routes_in_own_session), so a niced
+    # no note: the worker led a session of its own (agent.offline.apart), so a niced
     # agent's autogroup does not hold it back
     assert made is not None and made[1] == ", shared with the fleet"
     # computed in a process of its own (routes_apart): nothing here, the same routes
@@ -210,7 +210,7 @@ async def test_a_sharer_that_cannot_start_a_process_computes_in_a_thread(
     def no_process(*args: Any, **kwargs: Any) -> Any:
         raise OSError(38, "Function not implemented")
 
-    monkeypatch.setattr(replan_module, "ProcessPoolExecutor", no_process)
+    monkeypatch.setattr(apart_module, "ProcessPoolExecutor", no_process)
     announced: list[tuple[str, Any]] = []
     sharer = _runner(plan, _board(plan), 0, announced)
     made = await sharer._replan_of(sharer.board.inputs(DEAD))  # type: ignore[union-attr]

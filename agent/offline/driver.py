@@ -15,9 +15,9 @@ offline mission and the third watcher.
 from __future__ import annotations
 
 import asyncio
-import dataclasses
 import logging
 from collections.abc import Collection, Coroutine, Mapping, Sequence
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from agent.core.config import AgentConfig
@@ -25,16 +25,28 @@ from agent.core.errors import AgentError, DigestMismatchError, MissionFailedErro
 from agent.core.gather import BodyAgent
 from agent.core.hw_link import HwLink
 from agent.core.lifecycle import run_agent
+from agent.offline.apart import computed_apart
 from agent.offline.bodies import Bodies
 from agent.offline.hardware import Hardware
 from agent.offline.options import OfflineOptions
 from agent.offline.peers import PeerTable
-from agent.offline.plan import compute_plan, robot_machine
+from agent.offline.plan import fleet_plan, robot_machine
+from agent.offline.planshare import (
+    UnusableShareError,
+    plan_inputs,
+    plan_of,
+    share_of,
+    share_wait,
+    sharer,
+    unshared,
+)
 from agent.offline.replan import ReplanBoard
 from agent.offline.runner import OfflineRunner
 from bus import keys
 from bus.bridge import BoundedFifo, Bus, LatestWins, Received
+from bus.codec import encode
 from bus.config import ConnectionSettings
+from bus.errors import EncodeError
 from bus.liveness import HeartbeatInfo
 from bus.messages import (
     AgentState,
@@ -42,6 +54,7 @@ from bus.messages import (
     Heartbeat,
     MissionState,
     MissionStatus,
+    PlanShare,
     Progress,
     ReplanReport,
     ReplanShare,
@@ -51,6 +64,7 @@ from bus.messages import (
 )
 from planner.digest import plan_digest
 from planner.errors import PlannerError
+from planner.grid import work_area
 from planner.maps import resolve_world
 from planner.types import Plan
 
@@ -81,7 +95,7 @@ def pull_period(announce_period: float, k: int) -> float:
     return announce_period * max(1.0, k / PULL_ROBOTS)
 
 STATE_KINDS = (RobotStatus, DeathNotice, MissionStatus, AgentState, RobotEvent, Progress,
-               ReplanReport, ReplanShare)
+               ReplanReport, ReplanShare, PlanShare)
 
 
 class OfflineAgent(BodyAgent):
@@ -101,6 +115,7 @@ class OfflineAgent(BodyAgent):
         self.bodies: Bodies | None = None
         self._pulled = -float("inf")  # self.now() of the last pull while gathering
         self._turn = 0  # where the next crowd pull in turn starts (next_in_turn)
+        self._plan_shares: dict[int, PlanShare] = {}  # the latest first plan shared, by sharer
 
     # --- plumbing -------------------------------------------------------------------------
 
@@ -117,11 +132,22 @@ class OfflineAgent(BodyAgent):
         bus.subscribe(keys.all_progress(m), Progress, self._on_progress, BoundedFifo(65536))
         bus.subscribe(keys.mission_status(m), MissionStatus, self.peers.on_mission,
                       LatestWins())
+        bus.subscribe(keys.all_plan_shares(m), PlanShare, self._on_plan_share, BoundedFifo(64))
         if self.options.recovery == "rebalance":
             bus.subscribe(keys.all_replans(m), ReplanReport, self._on_replan_report,
                           BoundedFifo(4096))
             bus.subscribe(keys.all_replan_shares(m), ReplanShare, self._on_replan_share,
                           BoundedFifo(256))
+
+    def _on_plan_share(self, key: str, msg: PlanShare) -> None:
+        parsed = keys.parse(key)
+        if parsed is not None and parsed.robot != msg.robot:
+            self.bus.drops.count("plan_share", "invalid",
+                                 f"plan share of robot {msg.robot} on {key}")
+            return
+        if self._plan_shares.get(msg.robot) != msg:
+            self._plan_shares[msg.robot] = msg
+            self.peers.changed.set()
 
     def _on_replan_report(self, key: str, msg: ReplanReport) -> None:
         if self.board is not None and self.board.on_report(key, msg):
@@ -226,6 +252,8 @@ class OfflineAgent(BodyAgent):
                 self._on_replan_report(keys.replan(self.bus.mission, msg.robot), msg)
             elif isinstance(msg, ReplanShare):
                 self._on_replan_share(keys.replan_share(self.bus.mission, msg.robot), msg)
+            elif isinstance(msg, PlanShare):
+                self._on_plan_share(keys.plan_share(self.bus.mission, msg.robot), msg)
 
     # --- the mission ----------------------------------------------------------------------
 
@@ -256,14 +284,70 @@ class OfflineAgent(BodyAgent):
         assert self.roster is not None
         return [self.roster[r] for r in sorted(self.roster)]
 
-    def _plan(self, starts: list[tuple[int, int]]) -> Plan:
-        """The plan of the participants; its robots carry their fleet ids (a robot that took
-        no part leaves a gap in the ids, not a section nobody walks)."""
-        plan = compute_plan(self.grid, starts, self.config.algo, self.options.tree,
-                            self.config.seed)
+    def _plan_args(self, starts: list[tuple[int, int]]) -> tuple[Any, ...]:
+        return (self.grid, starts, self.participants(), self.config.algo, self.options.tree,
+                self.config.seed)
+
+    async def _first_plan(self, starts: list[tuple[int, int]]) -> tuple[Plan, str]:
+        """The participants' plan and how it was had (for the log): computed here, or in a
+        crowd computed by the lowest participant and shared (agent.offline.planshare)."""
         ids = self.participants()
-        return dataclasses.replace(plan, robots=tuple(
-            dataclasses.replace(rp, robot=ids[i]) for i, rp in enumerate(plan.robots)))
+        first = sharer(ids, self.options.plan_share_from)
+        if first is None:
+            # off the loop, as a re-plan is (agent/offline/runner.py): a balanced plan took
+            # 3.4 s on a host busy with three chaos trials, no heartbeat went out meanwhile,
+            # and a peer declared this robot dead (chaos seed 63, trial 71)
+            return await asyncio.to_thread(fleet_plan, *self._plan_args(starts)), ""
+        inputs = plan_inputs(self.grid, ids, starts, self.config.algo, self.options.tree,
+                             self.config.seed)
+        if first == self.robot:
+            return await self._share_plan(starts, inputs)
+        wait = share_wait(len(ids))
+        deadline = self.now() + wait
+        self.phase = f"waiting for robot {first}'s plan"
+        while True:
+            msg = self._plan_shares.get(first)
+            why = ""
+            if msg is not None and msg.inputs == inputs:
+                try:
+                    return (plan_of(msg, work_area(self.grid, starts), ids, self.config.algo),
+                            f", shared by robot {first}")
+                except UnusableShareError as error:
+                    self.bus.drops.count("plan_share", "unusable", f"robot {first}'s: {error}")
+                    why = f"robot {first}'s share is unusable: {error}"
+            elif first in self.peers.dead:
+                why = f"robot {first} died"
+            elif self.now() >= deadline:
+                why = f"robot {first}'s not heard in {wait:.0f} s"
+            if why:
+                self.phase = "planning"
+                plan = await asyncio.to_thread(fleet_plan, *self._plan_args(starts))
+                return plan, f", computed here: {why}"
+            # the sharer re-announces it every period; the backstop for a lost one asks the
+            # sharer alone (every robot's state, in a crowd, is what starves the sharer)
+            if self.now() - self._pulled >= pull_period(self.config.announce_period,
+                                                        self.config.k):
+                self._pulled = self.now()
+                await self.pull(first)
+            await self.peers.wait_news(self.config.announce_period)
+
+    async def _share_plan(self, starts: list[tuple[int, int]], inputs: str
+                          ) -> tuple[Plan, str]:
+        """The sharer's side: the plan computed in a process of its own, and announced."""
+        try:
+            plan, where = await computed_apart(fleet_plan, *self._plan_args(starts))
+        except (OSError, BrokenProcessPool) as error:
+            # no process to be had: the same plan in a thread, later in a crowd
+            plan = await asyncio.to_thread(fleet_plan, *self._plan_args(starts))
+            where = f" (computed in a thread: no process for it: {error})"
+        share = share_of(plan, self.robot, self.incarnation, inputs)
+        try:
+            encode(share, max_size=self.bus.max_payload)
+        except EncodeError as error:
+            share = unshared(self.robot, self.incarnation, inputs, str(error))
+            where += f" (not shared: {error})"
+        self.announcer.set(keys.plan_share(self.bus.mission, self.robot), share)
+        return plan, f", shared with the fleet{where}"
 
     def _check_digests(self) -> None:
         members = set(self.participants())
@@ -280,23 +364,23 @@ class OfflineAgent(BodyAgent):
         starts = await self._gather()
         self.phase = "planning"
         try:
-            # off the loop, as a re-plan is (agent/offline/runner.py): a balanced plan took
-            # 3.4 s on a host busy with three chaos trials, no heartbeat went out meanwhile,
-            # and a peer declared this robot dead (chaos seed 63, trial 71)
-            self.plan = await asyncio.to_thread(self._plan, starts)
+            self.plan, how = await self._first_plan(starts)
         except PlannerError as error:
             self._mission_status("failed", f"robot {self.robot} cannot plan: {error}")
             raise
+        self.phase = "planning"
         self.digest = plan_digest(self.plan)
         mine = next(rp for rp in self.plan.robots if rp.robot == self.robot)
         self._say(f"plan {self.digest[:12]} makespan {self.plan.makespan} moves, mine "
-                  f"{mine.steps}")
+                  f"{mine.steps}{how}")
         self._status("planned")
         self._check_digests()
         await self._until(lambda: self.peers.missing_digests(self.participants()),
                           "announce their plan digest",
                           self._check_digests)
         self._check_digests()
+        # everyone has flown the shared plan's digest: no one needs the share any more
+        self.announcer.remove(keys.plan_share(self.bus.mission, self.robot))
         rebalancing = self.options.recovery == "rebalance"
         machine = robot_machine(self.plan, self.config.algo, self.robot,
                                 takeover=not rebalancing)

@@ -7,6 +7,7 @@ import argparse
 from dataclasses import dataclass
 
 from agent.core.errors import ConfigError
+from agent.offline.planshare import SHARE_FROM as PLAN_SHARE_FROM
 from agent.offline.replan import SHARE_FROM
 from bus.argtypes import positive_int
 from planner.algorithms import Family, names
@@ -25,6 +26,7 @@ class OfflineOptions:
     tree: str = DEFAULT_TREE
     recovery: Recovery = DEFAULT_RECOVERY
     replan_share_from: int = SHARE_FROM
+    plan_share_from: int = PLAN_SHARE_FROM
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,6 +49,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             "computes a re-plan and shares it; the others check it against "
                             "their own reports and walk it (computing it themselves if it "
                             f"does not come) (default {SHARE_FROM})")
+    group.add_argument("--plan-share-from", type=positive_int, default=PLAN_SHARE_FROM,
+                       metavar="N",
+                       help="from N participants on only the lowest computes the first plan "
+                            "and shares it; the others check it and fly it (computing it "
+                            f"themselves if it does not come) (default {PLAN_SHARE_FROM})")
 
 
 def from_args(args: argparse.Namespace) -> OfflineOptions:
@@ -58,4 +65,5 @@ def from_args(args: argparse.Namespace) -> OfflineOptions:
         raise ConfigError(f"argument --tree: invalid choice for --algo {args.algo}: {tree!r} "
                           f"(choose from {', '.join(ALL_TREE_KINDS)})")
     return OfflineOptions(world=args.world, cell_size=args.cell_size, tree=tree,
-                          recovery=args.recovery, replan_share_from=args.replan_share_from)
+                          recovery=args.recovery, replan_share_from=args.replan_share_from,
+                          plan_share_from=args.plan_share_from)

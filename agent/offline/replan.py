@@ -25,16 +25,13 @@ routes' lengths are not); the fleet's robots are authenticated (docs/security.md
 
 from __future__ import annotations
 
-import asyncio
 import hashlib
-import multiprocessing
-import os
 from collections.abc import Collection, Mapping
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from agent.offline.apart import computed_apart
 from bus import keys
 from bus.drops import DropCounter
 from bus.messages import ReplanReport, ReplanShare, unpack_covered, unpack_routes
@@ -225,41 +222,14 @@ class ReplanInputs:
         return {r: replan.routes[r] for r in sorted(replan.routes)}
 
 
-# In a worker of routes_apart: why it could not lead a session of its own ("" when it does).
-_session_note = ""
-
-
-def _lead_own_session() -> None:
-    """The worker's initializer, before it imports the planner: leave the agent's session.
-
-    Linux shares the CPU between autogroups (one per session) before niceness counts, and a
-    crowded fleet's agents are niced in theirs (deploy.autogroup): a worker in its agent's
-    session got that agent's hundredth of the CPU, 1 s of CPU in 36 s of a 100-robot fleet's
-    wait for it. A new session's autogroup starts at niceness 0, the router's weight: the
-    fleet's one computation everyone waits for, about a second of CPU once per death."""
-    global _session_note
-    try:
-        os.setsid()
-    except OSError as error:  # a session leader already; the re-plan is the same either way
-        _session_note = f" (in its agent's session: {error})"
-
-
-def routes_in_own_session(inputs: ReplanInputs) -> tuple[dict[int, tuple[int, ...]], str]:
-    """``inputs.routes()`` in the worker, and why it is not in a session of its own ("")."""
-    return inputs.routes(), _session_note
+def _routes_of(inputs: ReplanInputs) -> dict[int, tuple[int, ...]]:
+    return inputs.routes()
 
 
 async def routes_apart(inputs: ReplanInputs) -> tuple[dict[int, tuple[int, ...]], str]:
-    """``inputs.routes()`` computed in a process of its own (spawned: the agent's Zenoh
-    threads are not forked), in a session of its own (:func:`_lead_own_session`; the note
-    says why not). The sharer of a crowded fleet computes there: in a thread of
-    its agent the re-plan waited for the interpreter lock while the agent answered its
-    peers' messages and queries, and 0.9 s of CPU took 177 s with 59 survivors on 2 cores."""
-    pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_lead_own_session)
-    try:
-        return await asyncio.get_running_loop().run_in_executor(pool, routes_in_own_session,
-                                                                inputs)
-    finally:
-        # the worker exits once it is done; the agent does not wait for it here
-        pool.shutdown(wait=False, cancel_futures=True)
+    """``inputs.routes()`` computed in a process of its own, in a session of its own
+    (agent.offline.apart; the note says why not). The sharer of a crowded fleet computes
+    there: in a thread of its agent the re-plan waited for the interpreter lock while the
+    agent answered its peers' messages and queries, and 0.9 s of CPU took 177 s with 59
+    survivors on 2 cores."""
+    return await computed_apart(_routes_of, inputs)

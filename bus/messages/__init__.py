@@ -48,6 +48,7 @@ from bus.messages.ormstc import (
     OrmstcWithdrawal,
     SonarRays,
 )
+from bus.messages.plan import PlanShare, join_moves, pack_moves, split_moves, unpack_moves
 from bus.messages.progress import (
     AgentState,
     LookStep,
@@ -83,18 +84,15 @@ from bus.messages.world import (
 )
 
 __all__ = [
-    "KIND_SINCE", "MESSAGE_TYPES", "NO_ROBOT", "ORMSTC_MESSAGES", "RECORD_TYPES",
-    "SCHEMA_VERSION", "AdminAction", "AdminCommand", "AdminReply", "AgentState", "BumpEvent",
-    "Cell", "CoverEvent", "DeathNotice", "DeathReason", "EventKind", "GroundTruthPose",
-    "Heartbeat", "Hello", "HwAction", "HwCommand", "HwReply", "HwStatus", "LookStep",
-    "MissionState", "MissionStatus", "OrmstcClaim", "OrmstcCompletion", "OrmstcConnection",
-    "OrmstcDeadRobot", "OrmstcRetraction", "OrmstcStart", "OrmstcTreeEdge", "OrmstcWire",
-    "OrmstcWithdrawal",
-    "Pose", "Progress", "RadioStats", "ReplanReport", "ReplanShare", "RobotArray", "RobotEvent",
-    "RobotStateName", "RobotStatus", "RobotTruth", "Sensor", "SonarRays", "SubCell",
-    "SummaryValue",
-    "TreeReport",
-    "WorldState", "make_world_state", "pack_covered", "pack_routes", "unpack_covered",
-    "unpack_routes",
-    "version_problem", "world_crossed", "world_first", "world_free", "world_visits",
+    "KIND_SINCE", "MESSAGE_TYPES", "NO_ROBOT", "ORMSTC_MESSAGES", "RECORD_TYPES", "SCHEMA_VERSION",
+    "AdminAction", "AdminCommand", "AdminReply", "AgentState", "BumpEvent", "Cell", "CoverEvent",
+    "DeathNotice", "DeathReason", "EventKind", "GroundTruthPose", "Heartbeat", "Hello", "HwAction",
+    "HwCommand", "HwReply", "HwStatus", "LookStep", "MissionState", "MissionStatus", "OrmstcClaim",
+    "OrmstcCompletion", "OrmstcConnection", "OrmstcDeadRobot", "OrmstcRetraction", "OrmstcStart",
+    "OrmstcTreeEdge", "OrmstcWire", "OrmstcWithdrawal", "PlanShare", "Pose", "Progress",
+    "RadioStats", "ReplanReport", "ReplanShare", "RobotArray", "RobotEvent", "RobotStateName",
+    "RobotStatus", "RobotTruth", "Sensor", "SonarRays", "SubCell", "SummaryValue", "TreeReport",
+    "WorldState", "join_moves", "make_world_state", "pack_covered", "pack_moves", "pack_routes",
+    "split_moves", "unpack_covered", "unpack_moves", "unpack_routes", "version_problem",
+    "world_crossed", "world_first", "world_free", "world_visits",
 ]

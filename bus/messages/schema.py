@@ -35,6 +35,7 @@ from bus.messages.ormstc import (
     OrmstcWithdrawal,
     SonarRays,
 )
+from bus.messages.plan import PlanShare
 from bus.messages.progress import AgentState, LookStep, Progress, ReplanReport, ReplanShare
 from bus.messages.tree import RadioStats, TreeReport
 from bus.messages.world import BumpEvent, CoverEvent, GroundTruthPose, RobotTruth, WorldState
@@ -171,6 +172,9 @@ KINDS: tuple[Kind, ...] = (
          C.CRITICAL, since=3),
     # a crowded fleet's re-plan, computed by one survivor, checked and walked by the others
     Kind(ReplanShare, (family("replanned/{robot}", access=BY_OWN, cache=STATE_CACHE),),
+         C.CRITICAL, since=5),
+    # a crowded fleet's first plan, computed by its lowest robot, checked and flown by the others
+    Kind(PlanShare, (family("planned/{robot}", access=BY_OWN, cache=STATE_CACHE),),
          C.CRITICAL, since=5),
     # the simulated hardware (bus.messages.hardware)
     Kind(HwCommand, (HW_CMD,), C.CONTROL),
