@@ -258,3 +258,26 @@ async def test_without_a_usable_share_a_robot_computes_the_plan_itself(
     assert how.startswith(", " + expected), how
     counted = {kind for kind, _ in fleet.agent.bus.drops.snapshot()}
     assert ("plan_share" in counted) == (trouble in ("unusable", "impostor")), counted
+
+
+@pytest.mark.parametrize(("k", "asked"), [(30, [[4, 9]]), (6, ["everyone"])])
+async def test_a_crowd_waiting_for_digests_asks_only_the_robots_it_waits_for(
+        k: int, asked: list[Any]) -> None:
+    """100 robots that pulled every robot's state while they waited for the plan digests
+    took 27 s to hear them all; in a crowd the wait asks the missing robots alone."""
+    fleet = _Fleet(0, None)
+    fleet.agent.config.k = k  # type: ignore[misc]
+    fleet.agent.config.announce_period = 0.5  # type: ignore[misc]
+    pulled: list[Any] = []
+
+    async def each(robots: Sequence[int]) -> None:
+        pulled.append(list(robots))
+
+    async def refresh() -> None:
+        pulled.append("everyone")
+
+    fleet.agent.each = each  # type: ignore[method-assign]
+    fleet.agent.refresh = refresh  # type: ignore[method-assign]
+    await fleet.agent._wait_news([4, 9])
+    await fleet.agent._wait_news([4, 9])  # within the pull period: nothing more
+    assert pulled == asked

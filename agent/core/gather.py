@@ -14,7 +14,7 @@ from __future__ import annotations
 import asyncio
 import time
 from abc import abstractmethod
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 
 from agent.core import roster as agreement
 from agent.core.config import AgentConfig
@@ -74,8 +74,9 @@ class BodyAgent(AgentLife):
         return sorted(self.roster) if self.roster is not None else list(range(self.config.k))
 
     @abstractmethod
-    async def _wait_news(self) -> None:
-        """Until something is heard, or one announce period (pulling what may be lost)."""
+    async def _wait_news(self, missing: Sequence[int] = ()) -> None:
+        """Until something is heard, or one announce period (pulling what may be lost;
+        ``missing``: the robots a wait is still for, if it is for some)."""
 
     def _gathering(self) -> None:
         """Hook: the body's pose is known and the gather begins."""
@@ -147,10 +148,10 @@ class BodyAgent(AgentLife):
         patience = self.config.start_timeout
         try:
             async with asyncio.timeout(patience):
-                while missing():
+                while waiting_for := missing():
                     if check is not None:
                         check()
-                    await self._wait_news()
+                    await self._wait_news(waiting_for)
         except TimeoutError:
             raise GatherTimeoutError(
                 f"robots {missing()} did not {what} within {patience:g} s "

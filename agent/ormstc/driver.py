@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 
 from agent.core.config import AgentConfig
 from agent.core.errors import HardwareError
@@ -307,7 +307,8 @@ class OrmstcAgent(BodyAgent):
     def _link(self) -> HwLink:
         return self.body.link
 
-    async def _wait_news(self) -> None:
+    async def _wait_news(self, missing: Sequence[int] = ()) -> None:
+        del missing  # peers' news comes on its own here: nothing is pulled
         self.news.clear()
         with contextlib.suppress(TimeoutError):
             async with asyncio.timeout(self.config.announce_period):
