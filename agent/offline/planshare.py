@@ -25,7 +25,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from bus.messages import PlanShare, join_moves, pack_moves, split_moves, unpack_moves
+from planner.algorithms import algorithm
 from planner.digest import plan_digest
+from planner.errors import PlannerError
 from planner.grid import WorkArea
 from planner.invariants import InvariantViolation, check_path_moves, check_plan
 from planner.types import Cycle, Direction, Leg, OccupancyGrid, Plan, RobotPlan, SubCell
@@ -110,6 +112,10 @@ def plan_of(msg: PlanShare, area: WorkArea, participants: Sequence[int], algo: s
     if plan_digest(plan) != msg.digest:
         raise UnusableShareError(f"it rebuilds into plan {plan_digest(plan)[:12]}, not the "
                                  f"{msg.digest[:12]} it names")
+    try:
+        algorithm(algo).load_machine().check_replayable(plan)  # type: ignore[attr-defined]
+    except PlannerError as error:
+        raise UnusableShareError(str(error)) from None
     return plan
 
 
