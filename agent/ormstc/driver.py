@@ -32,7 +32,7 @@ from agent.core.hw_link import HwLink
 from agent.core.lifecycle import run_agent
 from agent.ormstc.body import Body
 from agent.ormstc.looks import Looker, glance
-from agent.ormstc.options import OrmstcOptions
+from agent.ormstc.options import OrmstcOptions, resend_grace
 from agent.ormstc.sensing import (
     HEADING_DELTA,
     SonarMap,
@@ -103,7 +103,7 @@ class OrmstcAgent(BodyAgent):
         self.log: list[OrmstcWire] = []  # what this life said, by seq - 1 (for resends)
         # a message a peer's heartbeat shows lacking is said again once older than this (not
         # merely in flight or unread: a loaded host reads its queue late), then backing off
-        self.resender = Resender(config.incarnation, grace=max(0.3, 1.5 * config.heartbeat_period),
+        self.resender = Resender(config.incarnation, grace=resend_grace(config.heartbeat_period),
                                  cap=1.0)
         self.resent_bytes = 0
         self.broadcasts = 0  # the machine's Broadcasts published (its numbering of them)

@@ -28,6 +28,7 @@ from planner.ormstc.types import MachineConfig, Priority, SenseMode
 # (median 1.1-1.5 ms, worst 117-197 ms at load 10-27).
 DEFAULT_CLAIM_WAIT = 0.25
 DEFAULT_WATCH_INTERVAL = 0.5
+CLAIM_RESENDS = 3  # resend rounds a lost claim's winner is given to be heard (claim_ttl)
 DEFAULT_BUMP_BACKOFF = 0.05
 # simhw's body at time scale 1 takes 1.93 s for a step and 2.07 s for a quarter turn, so a body
 # ahead that turns and moves on holds the robot up about 4 s without being stuck
@@ -52,7 +53,26 @@ class OrmstcOptions:
             claim_wait=self.claim_wait, sense_mode=self.sense_mode, priority=self.priority,
             watch_interval=self.watch_interval, bump_backoff=self.bump_backoff,
             hold_up=self.hold_up, announce_connections=self.announce_connections, seed=config.seed,
-            await_acks=True)  # messages can be lost: agent/ormstc/wire.py repairs them
+            await_acks=True,  # messages can be lost: agent/ormstc/wire.py repairs them
+            claim_ttl=claim_ttl(self.claim_wait, config.heartbeat_period))
+
+
+def resend_grace(heartbeat_period: float) -> float:
+    """How long a message goes unacknowledged before it is sent again (agent.ormstc.driver's
+    Resender): acknowledgements ride on heartbeats."""
+    return max(0.3, 1.5 * heartbeat_period)
+
+
+def claim_ttl(claim_wait: float, heartbeat_period: float) -> float:
+    """How long a robot that lost a claim waits for the winner's tree edge before deciding the
+    cell again. The winner decides only once every live peer acknowledged its claim, and each
+    lost message (a claim, an acknowledgement, the edge) costs a resend after
+    ``resend_grace``: 40 robots under the chaos campaign's loss (heartbeats every 2.5 s)
+    walked back over their own cells to claims whose edges were on the way, with the
+    lockstep's 2 claim_wait + 1 (docs/ormstc.md, "Heavier loss"). A winner that dies first
+    is taken over at once whatever this is; only a live winner that declines the cell (a
+    body found in it) is repaired this much later."""
+    return 2 * claim_wait + 1 + CLAIM_RESENDS * resend_grace(heartbeat_period)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -69,8 +69,9 @@ class OrmstcMachine:
         self.me = config.robot
         # a claim heard at t is decided by t + wait and its edge heard by t + wait + D, with
         # D <= (wait + 1) / 2; 2 wait + 1 is past both
-        self.know = Knowledge(config.robot, config.team, config.priority,
-                              claim_ttl=2 * config.claim_wait + 1, fifo=config.await_acks)
+        ttl = 2 * config.claim_wait + 1 if config.claim_ttl is None else config.claim_ttl
+        self.know = Knowledge(config.robot, config.team, config.priority, claim_ttl=ttl,
+                              fifo=config.await_acks)
         self.now = 0.0
         start = config.start
         self.home: SubCell = (round(start[0]), round(start[1]))

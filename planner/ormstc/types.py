@@ -59,6 +59,10 @@ class MachineConfig:
     # delivery per sender: agent/ormstc/wire.py over planner/ormstc/streams.py)
     await_acks: bool = False
     seed: int = 0
+    # how long a lost claim's winner has to be heard building its tree edge before the loser
+    # decides the cell again (None: 2 claim_wait + 1, enough when every message arrives
+    # within the window; a driver that waits for acknowledgements passes longer)
+    claim_ttl: float | None = None
 
 
 # ---- requests (machine -> driver) ----
