@@ -255,7 +255,7 @@ async def test_without_a_usable_share_a_robot_computes_the_plan_itself(
     expected = {"unusable": "computed here: robot 0's share is unusable: walks of 5 robots",
                 "dead": "computed here: robot 0 died",
                 "silent": "computed here: robot 0's not heard in 0 s",
-                "elsewhere": "computed here: robot 0's not heard in 0 s",
+                "elsewhere": "computed here: robot 0's share was made from other inputs",
                 "impostor": "computed here: robot 0's not heard in 0 s"}[trouble]
     assert how.startswith(", " + expected), how
     counted = {kind for kind, _ in fleet.agent.bus.drops.snapshot()}

@@ -314,7 +314,10 @@ class OfflineAgent(BodyAgent):
         while True:
             msg = self._plan_shares.get(first)
             why = ""
-            if msg is not None and msg.inputs == inputs:
+            if msg is not None and msg.inputs != inputs:
+                # the digests will tell the fleet which inputs differ: compare them now
+                why = f"robot {first}'s share was made from other inputs"
+            elif msg is not None:
                 try:
                     # in a thread: the checks walk every sub-cell (0.2 s at 47 000)
                     plan = await asyncio.to_thread(plan_of, msg, work_area(self.grid, starts),
