@@ -11,13 +11,14 @@ mission outlasts the kills) and time, from the kill, the deletion of the robot's
 token and the first DeathNotice a peer publishes; it also counts death notices about robots
 that were never killed (false suspicions). startup: wall time from starting ``mstc up`` to
 every agent having announced itself, then the resident memory of each process. big: a full
-mission (default 30 robots on grid30x20, 2400 sub-cells) through ``mstc up``: wall time and
-the executed makespan over the planner's makespan. replan: for each fleet size, robot k/2
-killed at 30 % coverage (time scale 0, opt on grid30x20), once with the crowd's re-plan
-shared by its lowest survivor (the default) and once with every survivor computing it
-(``--replan-share-from 1000``), one after the other: seconds from the death being known to
-the first and the last survivor's re-plan, how the survivors had it, and the mission's wall
-time.
+mission (default 30 robots on grid30x20, 2400 sub-cells, ``--algo`` opt) through ``mstc up``:
+wall time, the time from every agent announced to the first move (the plan, computed once in a
+crowd, and the digests), and the executed makespan over the planner's makespan. replan: for
+each fleet size, robot k/2 killed at 30 % coverage (time scale 0, opt on grid30x20), once
+with the crowd's re-plan shared by its lowest survivor (the default) and once with every
+survivor computing it (``--replan-share-from 1000``), one after the other: seconds from the
+death being known to the first and the last survivor's re-plan, how the survivors had it,
+and the mission's wall time.
 """
 
 from __future__ import annotations
@@ -281,7 +282,7 @@ class ProcessSampler:
 
 def bench_big(args: argparse.Namespace, root: Path) -> None:
     run_dir = root / "big"
-    up = UpProcess(run_dir, "-n", str(args.robots), "--world", args.world, "--algo", "opt",
+    up = UpProcess(run_dir, "-n", str(args.robots), "--world", args.world, "--algo", args.algo,
                    "--time-scale", str(args.time_scale), "--stall-timeout", "120",
                    "--start-timeout", "600", *_lease(args),
                    *[f"--agent-arg={a}" for a in args.agent_arg])
@@ -293,9 +294,14 @@ def bench_big(args: argparse.Namespace, root: Path) -> None:
     summary = json.loads((run_dir / "summary.json").read_text())
     print("\n".join(line for _, line in up.lines[-8:]))
     started = next((at for at, line in up.lines if "mission started" in line), None)
-    print(f"{args.robots} robots on {args.world} at time scale {args.time_scale:g}: exit {code}, "
+    moving = next((at for at, line in up.lines if _FIRST_MOVES.search(line)), None)
+    planning = ("never" if started is None or moving is None else
+                f"{moving - started:.1f} s (to the first progress line with moves)")
+    print(f"{args.robots} robots, {args.algo}, on {args.world} at time scale "
+          f"{args.time_scale:g}: exit {code}, "
           f"wall {time.monotonic() - up.t0:.1f} s, start-up (mstc up start -> all announced) "
-          f"{'never' if started is None else f'{started - up.t0:.1f} s'}, coverage "
+          f"{'never' if started is None else f'{started - up.t0:.1f} s'}, planning (all "
+          f"announced -> moving) {planning}, coverage "
           f"{summary['coverage']:.1f} %, robots lost {len(summary['robots_lost'])}, "
           f"executed makespan {summary['makespan_moves']} / planned "
           f"{summary['planned_makespan']} = "
@@ -305,6 +311,7 @@ def bench_big(args: argparse.Namespace, root: Path) -> None:
 
 
 _SECONDS = re.compile(r"^\[ *([\d.]+)s\] ")
+_FIRST_MOVES = re.compile(r"moves [1-9]")
 
 
 def _at(line: str) -> float | None:
@@ -354,6 +361,8 @@ def main() -> None:
                         help="latency: SIGSTOP (a hung robot) instead of SIGKILL")
     parser.add_argument("--gap", type=float, default=1.0, help="seconds between kills")
     parser.add_argument("--world", default="grid30x20")
+    parser.add_argument("--algo", default="opt",
+                        help="big: the offline algorithm the fleet flies (default opt)")
     parser.add_argument("--lease-ms", type=int, default=None,
                         help="transport lease of every process (default: mstc up's)")
     parser.add_argument("--time-scale", type=float, default=0.0)
