@@ -32,7 +32,7 @@ from agent.core.hw_link import HwLink
 from agent.core.lifecycle import run_agent
 from agent.ormstc.body import Body
 from agent.ormstc.looks import Looker, glance
-from agent.ormstc.options import OrmstcOptions, resend_grace
+from agent.ormstc.options import OrmstcOptions, rejoin_silence, resend_grace
 from agent.ormstc.sensing import (
     HEADING_DELTA,
     SonarMap,
@@ -110,7 +110,7 @@ class OrmstcAgent(BodyAgent):
         self.index_of_seq: list[int] = []  # per published seq: broadcasts published by then
         self._acks: dict[int, float] = {}
         # a peer silent this long was cut off: restate (docs/ormstc.md, "Router restarts")
-        self.rejoin = Rejoin(silence=max(1.0, 5 * config.heartbeat_period))
+        self.rejoin = Rejoin(silence=rejoin_silence(config.heartbeat_period, config.dead_after))
 
     # --- plumbing -------------------------------------------------------------------------
 
