@@ -53,6 +53,6 @@ def test_agents_give_a_lost_claims_winner_resend_rounds_that_grow_with_the_heart
 def test_a_crowd_restates_only_after_silences_a_loaded_host_does_not_cause() -> None:
     """30 robots on 2 cores restated after every 1 s gap in a peer's heartbeats, 36-72 times
     per robot in 100 s, until claims waited behind the flood; small fleets keep 1 s."""
-    assert rejoin_silence(0.2, 3.0) == 1.0  # the agents' defaults: a router restart shows
+    assert rejoin_silence(0.2, 3.0) == 1.0  # the agents' own defaults (small fleets): as before
     assert rejoin_silence(0.2, 15.0) == pytest.approx(3.75)  # mstc up's timers, 30 robots
     assert rejoin_silence(2.5, 20.0) == pytest.approx(12.5)  # 40 robots: 5 heartbeats
