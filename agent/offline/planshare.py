@@ -19,6 +19,7 @@ one); the fleet's robots are authenticated and only robot r may put ``planned/<r
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from collections.abc import Sequence
 
@@ -95,18 +96,17 @@ def plan_of(msg: PlanShare, area: WorkArea, participants: Sequence[int], algo: s
     try:
         cycle = _cycle(msg, area)
         walks = split_moves(msg.moves, area.starts, msg.lengths)
-        robots = tuple(
-            RobotPlan(robot=robot, start=(int(area.starts[i][0]), int(area.starts[i][1])),
-                      start_index=cycle.position(area.starts[i]), legs=_legs(msg.legs[i]),
-                      path=tuple((int(r), int(c)) for r, c in walk), walk_out=msg.walk_outs[i])
-            for i, (robot, walk) in enumerate(zip(participants, walks, strict=True)))
-        plan = Plan(algo=algo, cycle=cycle, robots=robots, notes=msg.notes)
+        # numbered 0..k-1 as the work-area's starts are, for the check; fleet ids after it
         numbered = Plan(algo=algo, cycle=cycle, notes=msg.notes, robots=tuple(
-            RobotPlan(robot=i, start=rp.start, start_index=rp.start_index, legs=rp.legs,
-                      path=rp.path, walk_out=rp.walk_out) for i, rp in enumerate(robots)))
+            RobotPlan(robot=i, start=(int(start[0]), int(start[1])),
+                      start_index=cycle.position(start), legs=_legs(msg.legs[i]),
+                      path=tuple((int(r), int(c)) for r, c in walk), walk_out=msg.walk_outs[i])
+            for i, (start, walk) in enumerate(zip(area.starts, walks, strict=True))))
         # robots revisit sub-cells on walk-outs and the papers' backtracking: coverage and
         # walks are what is checked here, the digest and the machine check the rest
         check_plan(numbered, area, max_visits=k + 1, own_revisits_only=False)
+        plan = dataclasses.replace(numbered, robots=tuple(
+            dataclasses.replace(rp, robot=participants[rp.robot]) for rp in numbered.robots))
     except (ValueError, InvariantViolation) as error:
         raise UnusableShareError(str(error)) from None
     if plan_digest(plan) != msg.digest:

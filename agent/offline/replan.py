@@ -222,14 +222,10 @@ class ReplanInputs:
         return {r: replan.routes[r] for r in sorted(replan.routes)}
 
 
-def _routes_of(inputs: ReplanInputs) -> dict[int, tuple[int, ...]]:
-    return inputs.routes()
-
-
 async def routes_apart(inputs: ReplanInputs) -> tuple[dict[int, tuple[int, ...]], str]:
     """``inputs.routes()`` computed in a process of its own, in a session of its own
     (agent.offline.apart; the note says why not). The sharer of a crowded fleet computes
     there: in a thread of its agent the re-plan waited for the interpreter lock while the
     agent answered its peers' messages and queries, and 0.9 s of CPU took 177 s with 59
     survivors on 2 cores."""
-    return await computed_apart(_routes_of, inputs)
+    return await computed_apart(ReplanInputs.routes, inputs)
