@@ -18,6 +18,7 @@ import contextlib
 import inspect
 import logging
 import threading
+import time
 from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from contextlib import asynccontextmanager
 from typing import Any, Generic, TypeVar
@@ -391,6 +392,38 @@ class Bus:
             key, zenoh.handlers.Callback(watch._on_sample, indirect=False), history=True)
         self._closables.append(watch)
         return watch
+
+
+    def ask_tokens(self, key: str, timeout: float,
+                   on_answer: Callable[[frozenset[str] | None], None]) -> None:
+        """Ask the network which tokens matching ``key`` exist now. ``on_answer`` is called
+        on the loop with their keys, or with None when the answer proves nothing: the
+        session had no router when asked (the get then returns only this session's own
+        tokens), or the get ran into its timeout (a link that is dead but not yet known to
+        be answers nothing, which must not read as "every token is gone")."""
+        loop = self.loop
+        if not any(True for _ in self.session.info.routers_zid()):
+            loop.call_soon(on_answer, None)
+            return
+        found: set[str] = set()
+        lock = threading.Lock()
+        asked = time.monotonic()
+
+        def on_reply(reply: zenoh.Reply) -> None:
+            sample = reply.ok
+            if sample is not None:
+                with lock:
+                    found.add(str(sample.key_expr))
+
+        def on_done() -> None:
+            complete = time.monotonic() - asked < 0.9 * timeout
+            with lock:
+                answer = frozenset(found) if complete else None
+            with contextlib.suppress(RuntimeError):  # the loop closed: nobody waits any more
+                loop.call_soon_threadsafe(on_answer, answer)
+
+        self.session.liveliness().get(
+            key, zenoh.handlers.Callback(on_reply, on_done, indirect=False), timeout=timeout)
 
 
 def _resolve(future: asyncio.Future[None]) -> None:

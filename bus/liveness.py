@@ -6,23 +6,28 @@ entirely. Heartbeats cover the other hang: a process whose event loop is stuck w
 threads still keep its transport (and token) alive. Token deletions are confirmed after a
 short grace so that losing *our own* router (which deletes everybody's token locally) is
 not mistaken for a massacre: while disconnected nothing expires, and on reconnection every
-peer gets a fresh timeout. Incarnations fence stale lives: a heartbeat from a life already
-declared dead is ignored, a higher incarnation is a new life.
+peer gets a fresh timeout. A link that drops and comes back between two looks at it does the
+same unseen, so the service also asks the router which tokens it still holds before a
+deletion counts (FailureDetector.on_token_census). Incarnations fence stale lives: a
+heartbeat from a life already declared dead is ignored, a higher incarnation is a new life.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 
 from bus import keys
 from bus.bridge import BoundedFifo, Bus
 from bus.config import DEFAULT_LEASE_MS
 from bus.messages import DeathNotice, DeathReason, Heartbeat, Pose
+
+_log = logging.getLogger("mstc.bus.liveness")
 
 DEFAULT_HEARTBEAT_PERIOD = 0.2
 DEFAULT_TIMEOUT = 1.0
@@ -33,6 +38,9 @@ SOON_FRACTION = 20
 # A loop that ran this fraction of the lease late may have lost its session: a hung process's
 # session is dropped after ~0.75 x its lease (bus/config.py), so half of it is taken as enough.
 LEASE_STALL_FRACTION = 0.5
+# How long the router has to answer which tokens it holds; an answer that took this long
+# proves nothing (LivelinessService._ask_census).
+CENSUS_TIMEOUT = 1.0
 
 
 @dataclass
@@ -40,22 +48,27 @@ class _Peer:
     incarnation: int
     last_seen: float
     token_lost_at: float | None = None
+    token_loss_confirmed: bool = False
 
 
 class FailureDetector:
     """Decides deaths from heartbeats, token deletions and others' death notices.
 
     Clock values are injected (seconds, any monotonic origin); nothing here sleeps or does
-    I/O. ``detector`` is the robot running this detector (None for an observer).
+    I/O. ``detector`` is the robot running this detector (None for an observer). With
+    ``confirm_tokens`` a token deletion counts only once a census of the router's tokens
+    taken after it (:meth:`on_token_census`) lacks the token too.
     """
 
     def __init__(self, *, timeout: float = DEFAULT_TIMEOUT,
-                 token_grace: float = DEFAULT_TOKEN_GRACE, detector: int | None = None) -> None:
+                 token_grace: float = DEFAULT_TOKEN_GRACE, detector: int | None = None,
+                 confirm_tokens: bool = False) -> None:
         if timeout <= 0 or token_grace < 0:
             raise ValueError("timeout must be > 0 and token_grace >= 0")
         self.timeout = timeout
         self.token_grace = token_grace
         self.detector = detector
+        self.confirm_tokens = confirm_tokens
         self._peers: dict[int, _Peer] = {}
         self._dead: dict[int, DeathNotice] = {}  # robot -> notice of its newest dead life
         self._connected = True
@@ -102,6 +115,33 @@ class FailureDetector:
             return
         if peer.incarnation == incarnation:
             peer.token_lost_at = now
+            peer.token_loss_confirmed = False
+
+    def unconfirmed_token_losses(self) -> bool:
+        """Some token deletion awaits a census (only with ``confirm_tokens``)."""
+        return self.confirm_tokens and any(
+            peer.token_lost_at is not None and not peer.token_loss_confirmed
+            for peer in self._peers.values())
+
+    def on_token_census(self, present: Collection[tuple[int, int]], asked_at: float,
+                        now: float) -> list[int]:
+        """The router, asked at ``asked_at``, holds the tokens ``present`` (robot,
+        incarnation). A deletion heard before the question is confirmed by the token's
+        absence; a token the router still holds was deleted by this process's own link (it
+        dropped and came back unseen: Zenoh deletes every remote token locally when its
+        session goes), and counts as a sign of life. Returns the robots whose deletion the
+        census refuted."""
+        refuted = []
+        for robot, peer in sorted(self._peers.items()):
+            if peer.token_lost_at is None or peer.token_lost_at > asked_at:
+                continue
+            if (robot, peer.incarnation) in present:
+                peer.token_lost_at = None
+                peer.last_seen = max(peer.last_seen, now)
+                refuted.append(robot)
+            else:
+                peer.token_loss_confirmed = True
+        return refuted
 
     def on_death_notice(self, notice: DeathNotice) -> bool:
         """Accept another detector's verdict; True if it is news (a newer dead life)."""
@@ -200,7 +240,8 @@ class FailureDetector:
         notices = []
         for robot, peer in sorted(self._peers.items()):
             reason: DeathReason | None = None
-            if peer.token_lost_at is not None and now - peer.token_lost_at >= self.token_grace:
+            if peer.token_lost_at is not None and now - peer.token_lost_at >= self.token_grace \
+                    and (peer.token_loss_confirmed or not self.confirm_tokens):
                 reason = "token"
             elif now - peer.last_seen > self.timeout:
                 reason = "heartbeat"
@@ -290,7 +331,7 @@ class LivelinessService:
         # The service ticks every min(heartbeat period, token grace) / 2: a longer grace
         # (crowded fleets, deploy.settings.fleet_timing) makes an idle agent wake less often.
         self.detector = FailureDetector(timeout=timeout, token_grace=token_grace,
-                                        detector=robot)
+                                        detector=robot, confirm_tokens=True)
         self.heartbeats = HeartbeatPublisher(bus, robot, incarnation,
                                              period=heartbeat_period, info=info)
         self.fenced = asyncio.Event()
@@ -302,6 +343,8 @@ class LivelinessService:
         self._reminded: dict[int, float] = {}
         self._soon = asyncio.Event()
         self._last_beat = -math.inf
+        self._census_asked_at: float | None = None  # a census is on its way
+        self.refuted_deletions = 0
 
     def beat_soon(self) -> None:
         """Publish the next heartbeat now rather than at its period: a peer waits for what
@@ -383,11 +426,46 @@ class LivelinessService:
             self.detector.doubt_token_deletions(now, now + max(self.detector.timeout, self.lease))
         self._last_tick = now
         self.detector.set_connected(self._connected(), now)
+        if self.detector.unconfirmed_token_losses() and self._census_asked_at is None:
+            self._ask_census(now)
         notices = self.detector.expire(now)
         for notice in notices:
             self.bus.publish(keys.death(self.bus.mission, notice.robot), notice)
             self._news(notice)
         return notices
+
+    def _ask_census(self, now: float) -> None:
+        """Ask the router which tokens it holds; the answer confirms or refutes the token
+        deletions heard so far (FailureDetector.on_token_census). One question at a time;
+        an answer that proves nothing (no router, a timeout, or this robot's own token
+        missing from it) is asked again at the next tick, and heartbeats still decide
+        meanwhile."""
+        self._census_asked_at = now
+        self.bus.ask_tokens(keys.all_alive(self.bus.mission),
+                            max(CENSUS_TIMEOUT, self.detector.token_grace),
+                            lambda answer: self._on_census(now, answer))
+
+    def _on_census(self, asked_at: float, answer: frozenset[str] | None) -> None:
+        self._census_asked_at = None
+        if answer is None or not self._connected():
+            return
+        present = set()
+        for key in answer:
+            parsed = keys.parse(key)
+            if parsed is not None and parsed.robot is not None \
+                    and parsed.incarnation is not None:
+                present.add((parsed.robot, parsed.incarnation))
+        if (self.robot, self.incarnation) not in present:
+            # Zenoh 1.10 now and then ends a liveliness get at once with no reply at all,
+            # not even this session's own token (seen here about once in ten first gets):
+            # an answer without it proves nothing, and the next tick asks again.
+            return
+        refuted = self.detector.on_token_census(present, asked_at, self._clock())
+        if refuted:
+            self.refuted_deletions += len(refuted)
+            _log.warning("robot %d: the router still holds the tokens of robots %s, whose "
+                         "deletion this process heard: its own link dropped and came back",
+                         self.robot, refuted)
 
     async def run(self) -> None:
         mission = self.bus.mission

@@ -5,6 +5,7 @@ fast test before these)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from types import SimpleNamespace
 from typing import Any, cast
 
@@ -32,6 +33,10 @@ class FakeBus:
 
     def publish(self, key: str, msg: Any) -> None:
         self.published.append((key, msg))
+
+    def ask_tokens(self, key: str, timeout: float,
+                   on_answer: Callable[[frozenset[str] | None], None]) -> None:
+        on_answer(frozenset())  # the router holds no peer's token: every deletion is real
 
 
 class Clock:

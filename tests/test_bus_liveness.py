@@ -251,3 +251,41 @@ def test_a_single_peer_silent_is_declared_whatever_the_cause() -> None:
     fd = FailureDetector(timeout=1.0, detector=0)
     fd.on_heartbeat(hb(1), now=0.0)
     assert [n.robot for n in fd.expire(1.01)] == [1]
+
+
+def test_with_confirmation_a_deletion_counts_once_a_later_census_lacks_the_token() -> None:
+    fd = FailureDetector(timeout=5.0, token_grace=0.1, confirm_tokens=True)
+    for robot in (1, 2, 3):
+        fd.on_token(robot, 1, now=0.0)
+    assert not fd.unconfirmed_token_losses()
+    fd.on_token_deleted(1, 1, now=1.0)
+    fd.on_token_deleted(2, 1, now=1.0)
+    assert fd.unconfirmed_token_losses()
+    assert fd.expire(2.0) == []  # past the grace, but nobody has asked the router yet
+    # The router, asked at 2.0, still holds robot 2's token but not robot 1's.
+    assert fd.on_token_census({(2, 1), (3, 1)}, asked_at=2.0, now=2.01) == [2]
+    assert not fd.unconfirmed_token_losses()
+    assert [(n.robot, n.reason) for n in fd.expire(2.02)] == [(1, "token")]
+    assert fd.alive() == {2: 1, 3: 1}
+    # A deletion heard after the question is not settled by its answer.
+    fd.on_token_deleted(3, 1, now=3.0)
+    assert fd.on_token_census(set(), asked_at=2.9, now=3.1) == []
+    assert fd.unconfirmed_token_losses() and fd.expire(3.2) == []
+    assert fd.on_token_census(set(), asked_at=3.2, now=3.3) == []
+    assert [(n.robot, n.reason) for n in fd.expire(3.3)] == [(3, "token")]
+
+
+def test_a_refuted_deletion_is_a_sign_of_life_and_heartbeats_still_decide() -> None:
+    fd = FailureDetector(timeout=1.0, token_grace=0.1, confirm_tokens=True)
+    fd.on_token(1, 1, now=0.0)
+    fd.on_token(2, 1, now=0.0)
+    fd.on_token_deleted(1, 1, now=0.5)
+    fd.on_token_deleted(2, 1, now=0.5)
+    assert fd.on_token_census({(1, 1), (2, 1)}, asked_at=0.6, now=0.8) == [1, 2]
+    fd.on_heartbeat(hb(2), now=1.5)
+    assert fd.expire(1.7) == []  # robot 1 was last seen at the census, 0.9 s ago
+    # No census answers a deletion (the router cannot be reached): heartbeats decide.
+    fd.on_token_deleted(2, 1, now=1.8)
+    assert [(n.robot, n.reason) for n in fd.expire(1.85)] == [(1, "heartbeat")]
+    assert fd.expire(2.4) == []
+    assert [(n.robot, n.reason) for n in fd.expire(2.51)] == [(2, "heartbeat")]

@@ -160,3 +160,43 @@ async def test_an_early_heartbeat_comes_at_once_and_a_burst_of_asks_makes_one(
             await until(lambda: len(beats) == 4, timeout=3.0)
             assert published[1] - published[0] >= 6.0 / SOON_FRACTION - 0.01
             task.cancel()
+
+
+async def test_deletions_of_tokens_the_router_still_holds_are_refuted(
+        watcher: tuple[LivelinessService, list[DeathNotice]], router: str, mission: str) -> None:
+    """A link that drops and comes back between two looks at it makes Zenoh delete every
+    peer's token locally while the router holds them all (a starved agent once declared
+    nine live robots dead so). The watcher hears two such deletions, fed as its own link
+    would feed them: the census of the router's tokens refutes them, nobody is declared
+    dead. A real SIGKILL afterwards is still declared at once, by its token."""
+    service, deaths = watcher
+    tokens_heard: set[str] = set()
+    on_token = service._on_token
+
+    def recording(key: str, present: bool) -> None:
+        if present:
+            tokens_heard.add(key)
+        on_token(key, present)
+
+    service._on_token = recording  # type: ignore[method-assign]
+    procs = [start_robot(router, mission, robot) for robot in (5, 6)]
+    try:
+        # Both tokens heard first, and heard again if they come twice (history and live put
+        # may both arrive): a put coming after the fed deletion would undo it.
+        wanted = {keys.alive(mission, robot, 1) for robot in (5, 6)}
+        await until(lambda: wanted <= tokens_heard, timeout=3.0)
+        await asyncio.sleep(0.5)
+        for robot in (5, 6):
+            service._on_token(keys.alive(mission, robot, 1), False)
+        await until(lambda: service.refuted_deletions == 2, timeout=2.0)
+        await asyncio.sleep(0.5)  # five token graces
+        assert deaths == [] and set(service.detector.alive()) == {5, 6}
+        procs[0].send_signal(signal.SIGKILL)
+        killed = time.monotonic()
+        await until(lambda: deaths, timeout=3.0)
+        assert [(d.robot, d.reason) for d in deaths] == [(5, "token")]
+        assert time.monotonic() - killed < 0.5  # well inside the heartbeat timeout (0.6 s)
+        assert service.refuted_deletions == 2
+    finally:
+        for proc in procs:
+            reap(proc)
