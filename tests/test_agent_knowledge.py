@@ -30,13 +30,16 @@ class FakeBus:
         info = SimpleNamespace(routers_zid=lambda: iter([b"router"]), peers_zid=lambda: iter([]))
         self.session = SimpleNamespace(info=info)
         self.drops = DropCounter()
+        # what the router answers a census with: the agent's own token, no peer's (every
+        # deletion it heard is real)
+        self.tokens_held: set[str] = set()
 
     def publish(self, key: str, msg: Any) -> None:
         self.published.append((key, msg))
 
     def ask_tokens(self, key: str, timeout: float,
                    on_answer: Callable[[frozenset[str] | None], None]) -> None:
-        on_answer(frozenset())  # the router holds no peer's token: every deletion is real
+        on_answer(frozenset(self.tokens_held))
 
 
 class Clock:
@@ -71,6 +74,7 @@ def test_a_woken_robot_does_not_take_its_own_lost_session_for_its_peers_deaths(
     its 3 s timeout) woke to every peer's token deleted and declared them all dead. Half a
     lease of stall is enough to doubt those deletions; heartbeats still decide."""
     bus, clock = FakeBus(), Clock()
+    bus.tokens_held = {keys.alive("t", 3, 1)}
     heard: list[DeathNotice] = []
     service = LivelinessService(cast(Any, bus), 3, 1, timeout=3.0, token_grace=0.1,
                                 lease=1.0, clock=clock, on_death=heard.append)
@@ -261,3 +265,22 @@ def test_a_start_changed_within_one_life_is_counted_and_ignored() -> None:
     assert peers.statuses[1].start == (0, 0)
     peers.on_status("mstc/t/status/1", RobotStatus(1, 2, (4, 4), "nb", "", "z"))
     assert peers.statuses[1].start == (4, 4), "a new life may start elsewhere"
+
+
+def test_a_census_without_this_robots_own_token_proves_no_death() -> None:
+    """Zenoh 1.10 now and then ends a liveliness get at once with no reply at all: such an
+    answer must not confirm a deletion (it would declare every peer dead); heartbeats
+    decide instead, and an answer holding the robot's own token confirms it."""
+    bus, clock = FakeBus(), Clock()
+    heard: list[DeathNotice] = []
+    service = LivelinessService(cast(Any, bus), 3, 1, timeout=1.0, token_grace=0.1,
+                                clock=clock, on_death=heard.append)
+    service.tick()
+    service._on_token(keys.alive("t", 1, 1), True)
+    service._on_token(keys.alive("t", 1, 1), False)
+    for now in (0.05, 0.1, 0.2, 0.4):
+        clock.now = now
+        assert service.tick() == []  # every census came back empty: nothing proved
+    bus.tokens_held = {keys.alive("t", 3, 1)}
+    clock.now = 0.45
+    assert [(n.robot, n.reason) for n in service.tick()] == [(1, "token")]
