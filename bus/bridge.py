@@ -393,7 +393,6 @@ class Bus:
         self._closables.append(watch)
         return watch
 
-
     def ask_tokens(self, key: str, timeout: float,
                    on_answer: Callable[[frozenset[str] | None], None]) -> None:
         """Ask the network which tokens matching ``key`` exist now. ``on_answer`` is called
