@@ -393,15 +393,20 @@ class Bus:
         self._closables.append(watch)
         return watch
 
+    def connected(self) -> bool:
+        """Whether the session reaches anyone now: a router (client mode) or a peer."""
+        info = self.session.info
+        return any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
+
     def ask_tokens(self, key: str, timeout: float,
                    on_answer: Callable[[frozenset[str] | None], None]) -> None:
         """Ask the network which tokens matching ``key`` exist now. ``on_answer`` is called
         on the loop with their keys, or with None when the answer proves nothing: the
-        session had no router when asked (the get then returns only this session's own
-        tokens), or the get ran into its timeout (a link that is dead but not yet known to
-        be answers nothing, which must not read as "every token is gone")."""
+        session reached no router or peer when asked (the get then returns only this
+        session's own tokens), or the get ran into its timeout (a link that is dead but not
+        yet known to be answers nothing, which must not read as "every token is gone")."""
         loop = self.loop
-        if not any(True for _ in self.session.info.routers_zid()):
+        if not self.connected():
             loop.call_soon(on_answer, None)
             return
         found: set[str] = set()

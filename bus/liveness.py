@@ -412,9 +412,6 @@ class LivelinessService:
         else:
             self.detector.on_token_deleted(parsed.robot, parsed.incarnation, self._clock())
 
-    def _connected(self) -> bool:
-        info = self.bus.session.info
-        return any(True for _ in info.routers_zid()) or any(True for _ in info.peers_zid())
 
     def tick(self) -> list[DeathNotice]:
         """Check connectivity, expire, and broadcast the deaths found (one call per tick)."""
@@ -425,7 +422,7 @@ class LivelinessService:
         if stalled > self.lease * LEASE_STALL_FRACTION:
             self.detector.doubt_token_deletions(now, now + max(self.detector.timeout, self.lease))
         self._last_tick = now
-        self.detector.set_connected(self._connected(), now)
+        self.detector.set_connected(self.bus.connected(), now)
         if self.detector.unconfirmed_token_losses() and self._census_asked_at is None:
             self._ask_census(now)
         notices = self.detector.expire(now)
@@ -437,7 +434,7 @@ class LivelinessService:
     def _ask_census(self, now: float) -> None:
         """Ask the router which tokens it holds; the answer confirms or refutes the token
         deletions heard so far (FailureDetector.on_token_census). One question at a time;
-        an answer that proves nothing (no router, a timeout, or this robot's own token
+        an answer that proves nothing (no one reached, a timeout, or this robot's own token
         missing from it) is asked again at the next tick, and heartbeats still decide
         meanwhile."""
         self._census_asked_at = now
@@ -447,7 +444,7 @@ class LivelinessService:
 
     def _on_census(self, asked_at: float, answer: frozenset[str] | None) -> None:
         self._census_asked_at = None
-        if answer is None or not self._connected():
+        if answer is None or not self.bus.connected():
             return
         present = set()
         for key in answer:

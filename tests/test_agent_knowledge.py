@@ -27,12 +27,13 @@ class FakeBus:
     def __init__(self) -> None:
         self.mission = "t"
         self.published: list[tuple[str, Any]] = []
-        info = SimpleNamespace(routers_zid=lambda: iter([b"router"]), peers_zid=lambda: iter([]))
-        self.session = SimpleNamespace(info=info)
         self.drops = DropCounter()
-        # what the router answers a census with: the agent's own token, no peer's (every
-        # deletion it heard is real)
+        # the tokens the router answers a census with: tests put the agent's own there (no
+        # peer's: every deletion it heard is real); empty, an answer proves nothing
         self.tokens_held: set[str] = set()
+
+    def connected(self) -> bool:
+        return True
 
     def publish(self, key: str, msg: Any) -> None:
         self.published.append((key, msg))

@@ -224,3 +224,42 @@ async def test_late_watcher_sees_existing_tokens(bus: Bus, other: Bus) -> None:
     bus.watch_liveliness(keys.all_alive(bus.mission), puts.append, lambda _k: None)
     await until(lambda: puts)
     assert puts == [keys.alive(bus.mission, 2, 1)]
+
+
+async def ask(bus: Bus, key: str) -> frozenset[str] | None:
+    answered: asyncio.Future[frozenset[str] | None] = bus.loop.create_future()
+    bus.ask_tokens(key, 1.0, answered.set_result)
+    return await asyncio.wait_for(answered, 3.0)
+
+
+async def test_ask_tokens_answers_through_a_router(bus: Bus, other: Bus) -> None:
+    """What the liveness census asks (bus.liveness): the tokens that exist now, the
+    session's own and its peers', through the router."""
+    mine, theirs = keys.alive(bus.mission, 0, 1), keys.alive(bus.mission, 1, 1)
+    bus.declare_token(mine)
+    other.declare_token(theirs)
+    async with asyncio.timeout(3.0):
+        while (answer := await ask(bus, keys.all_alive(bus.mission))) is None \
+                or theirs not in answer:
+            await asyncio.sleep(0.05)
+    assert answer == {mine, theirs}
+
+
+async def test_ask_tokens_answers_in_peer_mode_and_not_when_alone(free_port: int) -> None:
+    """Peers with no router answer too (a census that asked only routers would never
+    confirm a death in a peer-mode fleet); a session that reaches no one gets None, not
+    its own token alone (which would read as every peer gone)."""
+    mission = f"t{next(_missions)}"
+    endpoint = f"tcp/127.0.0.1:{free_port}"
+    first = ConnectionSettings(mode="peer", listen=(endpoint,), mission=mission)
+    async with Bus.connect(first) as alone:
+        alone.declare_token(keys.alive(mission, 0, 1))
+        assert await ask(alone, keys.all_alive(mission)) is None
+        second = ConnectionSettings(mode="peer", connect=(endpoint,),
+                                    listen=("tcp/127.0.0.1:0",), mission=mission)
+        async with Bus.connect(second) as peer:
+            peer.declare_token(keys.alive(mission, 1, 1))
+            wanted = {keys.alive(mission, 0, 1), keys.alive(mission, 1, 1)}
+            async with asyncio.timeout(5.0):
+                while await ask(alone, keys.all_alive(mission)) != wanted:
+                    await asyncio.sleep(0.05)
