@@ -5,6 +5,7 @@ fast test before these)."""
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from types import SimpleNamespace
 from typing import Any, cast
@@ -18,7 +19,7 @@ from bus import keys
 from bus.drops import DropCounter
 from bus.liveness import LivelinessService
 from bus.messages import DeathNotice, Heartbeat, RobotEvent
-from planner.offline.machine import OfflineRobot, WaitFor
+from planner.offline.machine import MoveTo, OfflineRobot, WaitFor
 
 
 class FakeBus:
@@ -285,3 +286,36 @@ def test_a_census_without_this_robots_own_token_proves_no_death() -> None:
     bus.tokens_held = {keys.alive("t", 3, 1)}
     clock.now = 0.45
     assert [(n.robot, n.reason) for n in service.tick()] == [(1, "token")]
+
+
+async def test_a_robot_that_cannot_move_says_why_and_what_it_knows(
+        monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
+    """A stalled fleet leaves the evidence in its logs: what stops the robot and where it
+    believes the others are (a CI rehearsal's stall left none, 2026-12-05)."""
+    import agent.offline.runner as runner_module
+    from agent.offline.bodies import Bodies
+
+    monkeypatch.setattr(runner_module, "STILL_WARN_S", 0.0)
+    cycle = strip_cycle(3)
+    # robot 1 is parked on the first place of robot 0's walk
+    plan = plan_of(cycle, [(0, [1, 2, 3]), (1, [])])
+    peers = PeerTable(robot=0, k=2, drops=DropCounter())
+    machine = OfflineRobot(plan, 0, takeover=False)
+    peers.attach(machine)
+
+    async def refresh() -> None:
+        return None
+
+    runner = OfflineRunner(cast(Any, FakeBus()), cast(Any, FakeHardware()), peers, machine, 1,
+                           refresh=refresh, refresh_period=60.0,
+                           bodies=Bodies.of_plan(plan, 0))
+    action = machine.next_action()
+    assert isinstance(action, MoveTo)
+    with caplog.at_level(logging.WARNING, logger="mstc.agent"):
+        assert not await runner._drive(action)
+    said = [r.getMessage() for r in caplog.records if "has not moved" in r.getMessage()]
+    assert len(said) == 1, caplog.text
+    assert "waiting for robot 1" in said[0] and f"1 at {cycle.at(1)}" in said[0], said
+    with caplog.at_level(logging.WARNING, logger="mstc.agent"):
+        assert not await runner._drive(machine.next_action())  # type: ignore[arg-type]
+    assert len([r for r in caplog.records if "has not moved" in r.getMessage()]) == 2

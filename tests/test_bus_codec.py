@@ -164,7 +164,7 @@ def test_a_long_array_of_rows_is_checked_as_strictly_as_item_by_item(heard: Any,
 
 
 def test_an_array_of_scalars_is_checked_as_strictly_as_item_by_item() -> None:
-    raw = raw_of(ReplanReport(3, 2, (1, 4), 7, (8, 9, 10), b"x"))
+    raw = raw_of(ReplanReport(3, 2, (1, 4), 7, (8, 9, 10), b"x", 1.5))
     for bad, match in (([8, True], r"route\[1\]: expected int, got bool"),
                        ([8, 9.0], r"route\[1\]: expected int, got float"),
                        ([8, [9]], r"route\[1\]: expected int, got tuple")):
@@ -172,7 +172,7 @@ def test_an_array_of_scalars_is_checked_as_strictly_as_item_by_item() -> None:
         with pytest.raises(DecodeError, match=match):
             decode(pack(raw), ReplanReport)
     with pytest.raises(EncodeError, match=r"route\[0\]: expected int, got bool"):
-        encode(ReplanReport(3, 2, (1, 4), 7, (True,), b"x"))
+        encode(ReplanReport(3, 2, (1, 4), 7, (True,), b"x", 1.5))
     raw["route"] = list(range(500))
     assert decode(pack(raw), ReplanReport).route == tuple(range(500))
 

@@ -78,7 +78,7 @@ EXAMPLES: dict[type[Any], Any] = {ex.__class__: ex for ex in (
     SonarRays(3, 2, ((4, 5, 1, 3), (4, 5, 0, 8))),
     AgentState(3, 2, "covering", 10, 16, pack_covered(np.arange(16) < 5), (1,), (1,),
                {"hb.decode": 2}, (((0, 0), (0, 1)),), ((1, 1),), "dfs", 4),
-    ReplanReport(3, 2, (1, 4), 7, (8, 9, 10), pack_covered(np.arange(16) < 8)),
+    ReplanReport(3, 2, (1, 4), 7, (8, 9, 10), pack_covered(np.arange(16) < 8), 12.5),
     ReplanShare(0, 2, (1, 4), "ab" * 32, (0, 2, 3), (2, 0, 1), pack_routes([[5, 6], [], [9]])),
     PlanShare(0, 2, "cd" * 32, "ab" * 32, (0, 0), pack_moves([(0, 0), (0, 1), (1, 1), (1, 0)]),
               (1, 0), join_moves([[(0, 0), (0, 1)], [(1, 1)]]), (0, 0), ("ccw3", ""),

@@ -69,11 +69,22 @@ def expected_reachable(info: FleetInfo) -> int:
     return int(reachable_oracle(grid.free, list(info.starts)).sum())
 
 
+def log_tails(run_dir: Path, lines: int = 12) -> str:
+    """The last lines of every process's log of a run: what a failed fleet test prints, as
+    the run directory is gone when pytest's temporary directories rotate (a CI rehearsal's
+    stall left no evidence, 2026-12-05)."""
+    out = []
+    for log in sorted((run_dir / "logs").glob("*.log")):
+        tail = log.read_text(errors="replace").splitlines()[-lines:]
+        out.append(f"--- {log.name} (last {len(tail)} lines)\n" + "\n".join(tail))
+    return "\n".join(out)
+
+
 def check_complete(result: subprocess.CompletedProcess[str], run_dir: Path) -> dict[str, Any]:
-    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.returncode == 0, "\n".join((result.stdout, result.stderr, log_tails(run_dir)))
     info = RunDir(run_dir).read_fleet()
     summary = json.loads((run_dir / "summary.json").read_text())
-    assert summary["complete"] is True
+    assert summary["complete"] is True, log_tails(run_dir)
     assert summary["covered"] == summary["reachable"] == expected_reachable(info)
     assert "100.0 %" in result.stdout
     # Every robot of a run without failures walks at least its planned share.

@@ -27,7 +27,7 @@ def _plan_of(ids: tuple[int, ...]) -> Plan:
 def _report(plan: Plan, robot: int, dead: tuple[int, ...]) -> ReplanReport:
     mine = next(rp for rp in plan.robots if rp.robot == robot)
     covered = np.zeros(plan.cycle.n, dtype=bool)
-    return ReplanReport(robot, 1, dead, mine.start_index, (), pack_covered(covered))
+    return ReplanReport(robot, 1, dead, mine.start_index, (), pack_covered(covered), 0.0)
 
 
 def _told(board: ReplanBoard, plan: Plan, robot: int, dead: tuple[int, ...]) -> None:
@@ -50,7 +50,7 @@ def test_a_robot_that_took_no_part_is_no_member_of_any_re_plan() -> None:
     inputs = board.inputs((3,))
     assert [s.robot for s in inputs.survivors] == [0, 2]
     # a report of a robot that took no part is refused, not kept
-    foreign = ReplanReport(1, 1, (3,), 0, (), pack_covered(np.zeros(plan.cycle.n, dtype=bool)))
+    foreign = ReplanReport(1, 1, (3,), 0, (), pack_covered(np.zeros(plan.cycle.n, dtype=bool)), 0.0)
     assert not board.on_report(keys.replan("m", 1), foreign)
     assert 1 not in board.reports and board.drops.total("replan", "invalid") == 1
 

@@ -43,7 +43,7 @@ def _board(plan: Plan, share_from: int = 3) -> ReplanBoard:
     covered = np.arange(plan.cycle.n) < plan.cycle.n // 4
     for rp in plan.robots:
         if rp.robot not in DEAD:
-            report = ReplanReport(rp.robot, 1, DEAD, rp.start_index, (), pack_covered(covered))
+            report = ReplanReport(rp.robot, 1, DEAD, rp.start_index, (), pack_covered(covered), 0.0)
             assert board.on_report(keys.replan("m", rp.robot), report)
     assert board.missing(DEAD) == []
     return board
@@ -171,7 +171,8 @@ def _runner(plan: Plan, board: ReplanBoard, robot: int,
                               all_covered=False)
     bus = SimpleNamespace(mission="m", publish=lambda key, msg: None)
     peers = SimpleNamespace(wait_news=wait_news)
-    return OfflineRunner(bus, None, peers, machine, 1,  # type: ignore[arg-type]
+    hardware = SimpleNamespace(state=SimpleNamespace(sim_time=0.0))
+    return OfflineRunner(bus, hardware, peers, machine, 1,  # type: ignore[arg-type]
                          refresh=refresh, refresh_period=0.05, board=board,
                          announce=lambda key, msg: announced.append((key, msg)))
 
@@ -284,7 +285,7 @@ def _waiting_runner(plan: Plan, crowd: _CrowdPulls | None,
     """Robot 0 after robot 1's death; only robot 2's report has come."""
     board = ReplanBoard(plan, DropCounter(), share_from=3)
     covered = np.zeros(plan.cycle.n, dtype=bool)
-    report = ReplanReport(2, 1, DEAD, plan.robots[2].start_index, (), pack_covered(covered))
+    report = ReplanReport(2, 1, DEAD, plan.robots[2].start_index, (), pack_covered(covered), 0.0)
     assert board.on_report(keys.replan("m", 2), report)
     runner = _runner(plan, board, 0, [])
     runner.machine.pending_route = ()  # type: ignore[misc]

@@ -151,7 +151,7 @@ def test_bodies_follow_progress_along_the_route_and_aside() -> None:
     cycle = corridor(4)
     plan_walk = [cycle.position(s) for s in row(0, range(0, 8))]
     bodies = Bodies(cycle, robot=9)
-    bodies.on_replan({0: tuple(plan_walk[1:])}, {0: plan_walk[0]})
+    bodies.on_replan({0: tuple(plan_walk[1:])}, {0: (plan_walk[0], 0.0)})
     assert bodies.walks == {}  # a robot it never heard of is not invented
     bodies = Bodies.of_plan(make("opt", generated(1, 3), 1), robot=0)
     other = next(iter(bodies.walks))
@@ -241,8 +241,8 @@ def test_a_replan_places_a_body_where_it_reported_it_stood() -> None:
     bodies = Bodies.of_plan(make("opt", generated(1, 3), 1), robot=0)
     other = next(iter(bodies.walks))
     first, second, *rest = bodies.walks[other].route[:5]
-    assert bodies.on_progress(other, 1, first)  # its second move's Progress is lost
-    bodies.on_replan({other: tuple(rest)}, {other: second})
+    assert bodies.on_progress(other, 1, first, 1.0)  # its second move's Progress is lost
+    bodies.on_replan({other: tuple(rest)}, {other: (second, 2.0)})
     peer = next(p for p in bodies.peers(()) if p.robot == other)
     assert (peer.position, peer.ahead) == (second, tuple(rest))
 
@@ -266,14 +266,70 @@ def test_a_peer_that_walked_far_along_its_new_route_before_this_re_plan_landed_s
     new = tuple(walk[27::-1])
     walked = 3 * LOOK
     for seq, place in enumerate(new[:walked], start=1):
-        assert bodies.on_progress(other, seq, place)
-    bodies.on_replan({other: new}, {other: base})
+        assert bodies.on_progress(other, seq, place, 10.0 + seq)
+    bodies.on_replan({other: new}, {other: (base, 10.0)})
     peer = next(p for p in bodies.peers(()) if p.robot == other)
     assert (peer.position, peer.ahead) == (new[walked - 1], new[walked:walked + LOOK])
     # and its next Progress is read along the new route
-    assert bodies.on_progress(other, walked + 1, new[walked])
+    assert bodies.on_progress(other, walked + 1, new[walked], 11.0 + walked)
     peer = next(p for p in bodies.peers(()) if p.robot == other)
     assert (peer.position, peer.ahead) == (new[walked], new[walked + 1:walked + 1 + LOOK])
+
+
+def test_a_peer_that_walked_on_and_stepped_aside_before_this_re_plan_landed_is_expected_back(
+        ) -> None:
+    """A CI rehearsal's stall (2026-12-05): a survivor walked part of its new route, then
+    stepped aside for a robot, all before a slower survivor applied the re-plan. Its latest
+    place was off its new route, so it was put back where it reported, and its next
+    heartbeat placed it off its route with next places unknown: a robot it waited on then
+    waited on it, for good. It is now placed aside, expected back where it left its route."""
+    cycle = corridor(16)  # sub-cells (0..1, 0..31)
+    top = [cycle.position(s) for s in row(0, range(32))]
+    plan = Plan("opt", cycle, (RobotPlan(0, (1, 31), cycle.position((1, 31)), (), ((1, 31),)),
+                               RobotPlan(1, (0, 0), top[0], (), tuple(cycle.at(w) for w in top))))
+    bodies = Bodies.of_plan(plan, robot=0)
+    other = 1
+    base, new = top[20], tuple(top[19::-1])  # its re-plan: back along the top row
+    assert bodies.on_progress(other, 20, base, 20.0)  # then it stopped and reported
+    walked = 6
+    for seq, place in enumerate(new[:walked], start=21):
+        assert bodies.on_progress(other, seq, place, float(seq))
+    aside = cycle.position((1, cycle.at(new[walked - 1])[1]))  # below its latest place
+    assert bodies.on_progress(other, 21 + walked, aside, 21.0 + walked)
+    bodies.on_replan({other: new}, {other: (base, 20.5)})
+    peer = next(p for p in bodies.peers(()) if p.robot == other)
+    assert peer.position == aside and peer.returning and not peer.lost
+    assert peer.ahead == (new[walked - 1], *new[walked:walked + LOOK - 1])
+    assert not bodies.on_pose(other, aside, 30.0)  # its heartbeat agrees: nothing changes
+    # the report's own time: nothing heard of since, so it stands where it reported
+    bodies = Bodies.of_plan(plan, robot=0)
+    assert bodies.on_progress(other, 20, base, 20.0)
+    bodies.on_replan({other: new}, {other: (base, 20.0)})
+    peer = next(p for p in bodies.peers(()) if p.robot == other)
+    assert (peer.position, peer.ahead) == (base, new[:LOOK])
+
+
+def test_a_robot_waited_on_by_a_body_whose_next_places_are_lost_opens_the_ring() -> None:
+    """Robot 1 wants the sub-cell robot 0 stands on, and robot 0 (in truth waiting for robot
+    1's) is known only by its place: its next places are lost. Taking it for parked, robot 1
+    waited for it while robot 0, seeing the ring, waited for robot 1, the higher id, to step
+    aside. A blocker whose next places are lost counts as a ring: the same yielder."""
+    cycle = corridor(4)
+    a, b = cycle.position((0, 3)), cycle.position((0, 4))
+    lane = Traffic(1, cycle, b)
+    lost = Peer(0, a, lost=True)
+    step = lane.decide(a, [lost])
+    assert isinstance(step, Go) and not step.on_plan and step.target not in (a, b)
+    lane.moved(step)
+    # aside, it waits there while the body stands as it was (else the two take turns)
+    assert lane.decide(a, [lost]) == Hold(0)
+    # robot 0 took the place it waited for: robot 1 walks back once that one has moved on
+    assert lane.decide(a, [Peer(0, b)]) == Hold(0)
+    assert lane.decide(a, [Peer(0, cycle.position((1, 7)))]) == Go(b, on_plan=False)
+    # robot 0 sees the ring and names robot 1 too: it holds
+    assert Traffic(0, cycle, a).decide(b, [Peer(1, b, (a,))]) == Hold(1)
+    # a body known to be parked there is waited for, as before (it makes way itself)
+    assert Traffic(1, cycle, b).decide(a, [Peer(0, a)]) == Hold(0)
 
 
 def test_a_body_heard_of_again_after_many_lost_messages_is_placed_along_its_route() -> None:

@@ -22,11 +22,15 @@ from __future__ import annotations
 
 import contextlib
 import math
+from collections import deque
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from planner.offline.traffic import LOOK, Peer, neighbours
 from planner.types import Cycle, Plan
+
+# How many of a robot's latest places are kept (see _Walk.trail).
+TRAIL = 4 * LOOK
 
 
 @dataclass
@@ -37,6 +41,9 @@ class _Walk:
     done: int = 0  # places of the route walked
     seq: int = -1  # the latest Progress seq applied
     seen: float = -math.inf  # the simulated time of the latest place applied
+    # the latest places heard of with their simulated times, newest last: how far along its
+    # new route a robot got before this robot applied the re-plan (on_replan)
+    trail: deque[tuple[int, float]] = field(default_factory=lambda: deque(maxlen=TRAIL))
 
 
 @dataclass
@@ -84,6 +91,7 @@ class Bodies:
             return False  # older than the place known (a delayed message)
         walk.seen = sim_time
         walk.position = index
+        walk.trail.append((index, sim_time))
         window = walk.route[walk.done:walk.done + 2 * LOOK]
         if index in window:
             walk.done += window.index(index) + 1
@@ -128,25 +136,41 @@ class Bodies:
         if rank < 2 * LOOK:
             walk.done += rank + 1
         walk.position = index
+        walk.trail.append((index, walk.seen))  # when it got there is not known: not later
         return True
 
     def on_replan(self, routes: Mapping[int, Sequence[int]],
-                  positions: Mapping[int, int]) -> None:
-        """A re-plan: each survivor walks ``routes[r]`` from ``positions[r]`` (its report);
-        a survivor already seen further on is placed along its new route, however far (it
-        applied the same re-plan earlier and walked on while this robot's was computed:
-        chaos seed 61, trials 465 and 483), any other where it reported it stood (a
-        Progress lost before it stopped to report left it behind)."""
+                  reports: Mapping[int, tuple[int, float]]) -> None:
+        """A re-plan: each survivor walks ``routes[r]`` from where its report said it stood,
+        ``reports[r]`` = (place, simulated time then). Places heard of since that time
+        were walked after the report: a survivor that applied the same re-plan earlier
+        walked on while this robot's was computed (chaos seed 61, trials 465 and 483). It is
+        placed where it was heard of last, along its new route as far as its latest place
+        there (however far: only the next 2 x LOOK places were searched once, which lost it);
+        a place heard of after that one is a step aside, from which it is expected back
+        there. With no place heard of since its report it stands where it reported (a
+        Progress lost before it stopped to report left it behind).
+
+        Put back where it reported when its latest place was off its new route, a survivor
+        that had stepped aside after walking on was later placed by its heartbeat off its
+        route, its next places unknown (a robot meeting it there waited for good for a
+        robot waiting on it: the stall of a CI rehearsal, 2026-12-05)."""
         for robot, route in routes.items():
             walk = self.walks.get(robot)
             if walk is None:
                 continue
-            base = positions.get(robot, walk.position)
+            base, stopped = reports.get(robot, (walk.position, walk.seen))
             walk.base, walk.route, walk.done = base, tuple(route), 0
-            if walk.position != base and walk.position in walk.route:
-                walk.done = walk.route.index(walk.position) + 1
-            else:
+            since = [place for place, at in walk.trail if at > stopped]
+            if not since:
                 walk.position = base
+                walk.trail.clear()
+                continue
+            walk.position = since[-1]
+            for place in reversed(since):
+                with contextlib.suppress(ValueError):
+                    walk.done = walk.route.index(place) + 1
+                    break
 
     def peers(self, dead: Collection[int]) -> list[Peer]:
         """Every body not known dead, with its next places as far as known."""
@@ -161,6 +185,6 @@ class Bodies:
                 out.append(Peer(robot, walk.position, ahead))
             elif left_at in neighbours(self.cycle, walk.position):
                 out.append(Peer(robot, walk.position, (left_at, *ahead)[:LOOK], True))
-            else:
-                out.append(Peer(robot, walk.position))  # somewhere aside: next unknown
+            else:  # somewhere aside: its next places are unknown
+                out.append(Peer(robot, walk.position, lost=True))
         return out

@@ -15,6 +15,7 @@ steps aside for one whose next sub-cell it stands on, and a bump makes it decide
 from __future__ import annotations
 
 import asyncio
+import logging
 import time
 from collections.abc import Awaitable, Callable, Sequence
 from concurrent.futures.process import BrokenProcessPool
@@ -39,12 +40,18 @@ from bus.messages import (
     pack_routes,
 )
 from planner.offline.machine import Finished, MoveTo, PlanRobot, WaitFor
-from planner.offline.traffic import Go, Traffic
+from planner.offline.traffic import Go, Hold, Traffic
 
 # How long bumps into the same sub-cell, one after the other, may go on before the body
 # counts as failed (a body simhw holds that nobody knows of: a robot outside the plan).
 BUMP_PATIENCE_S = 30.0
 BUMP_RETRY_S = 0.05
+# A robot with a route to walk that has not moved for this long says why in its log (and
+# again each time as long): what stops it and where it believes the others are, the
+# evidence a stalled fleet leaves.
+STILL_WARN_S = 5.0
+
+_log = logging.getLogger("mstc.agent")
 
 
 class CrowdPulls(Protocol):
@@ -94,6 +101,8 @@ class OfflineRunner:
         self.lane = None if bodies is None else Traffic(self.robot, machine.cycle,
                                                         machine.position)
         self._bumping: tuple[int, float] | None = None  # (place, since) of repeated bumps
+        self._still_since = time.monotonic()  # the body's last move (or a re-plan)
+        self._still_said = -float("inf")
 
     def event(self, kind: EventKind, subject: int | None = None, detail: str = "") -> None:
         self.bus.publish(keys.events(self.bus.mission, self.robot),
@@ -146,9 +155,12 @@ class OfflineRunner:
         plan_next = None if action is None else action.index
         step = self.lane.decide(plan_next, self.bodies.peers(self.machine.dead))
         if not isinstance(step, Go):
+            if action is not None:
+                self._say_still(step)
             return False
         if step.target == self.lane.at:
             self.machine.on_moved()
+            self._still_since = time.monotonic()
             return True
         if not await self.hardware.try_step_to(self.machine.cycle.at(step.target)):
             self.lane.bumped()
@@ -162,9 +174,11 @@ class OfflineRunner:
                 raise HardwareError(f"robot {self.robot}: bumped into "
                                     f"{self.machine.cycle.at(step.target)} for "
                                     f"{now - self._bumping[1]:.0f} s")
+            self._say_still(step)
             await self.peers.wait_news(BUMP_RETRY_S)
             return False
         self._bumping = None
+        self._still_since = time.monotonic()
         if step.on_plan:
             self.machine.on_moved()
         else:
@@ -172,6 +186,28 @@ class OfflineRunner:
         self.lane.moved(step)
         self._moved(self.machine.cycle.at(step.target))
         return True
+
+    def _say_still(self, step: Go | Hold) -> None:
+        """Log why the body has not moved for STILL_WARN_S (at most once per that time)."""
+        assert self.lane is not None and self.bodies is not None
+        now = time.monotonic()
+        if now - max(self._still_since, self._still_said) < STILL_WARN_S:
+            return
+        self._still_said = now
+        at = self.machine.cycle.at
+        why = (f"bumping into {at(step.target)}" if isinstance(step, Go)
+               else f"waiting for robot {step.blocker}" if step.blocker is not None
+               else "giving way")
+        known = "; ".join(
+            f"{p.robot} at {at(p.position)}"
+            + (f" next {at(p.ahead[0])}" if p.ahead else " next unknown" if p.lost else "")
+            + (" (on its way back)" if p.returning else "")
+            for p in self.bodies.peers(self.machine.dead))
+        route = self.machine.pending_route
+        _log.warning("robot %d has not moved for %.0f s (%s): at %s, %s, plan's next %s; "
+                     "the others as known: %s", self.robot, now - self._still_since,
+                     self.phase, at(self.lane.at), why, at(route[0]) if route else "-",
+                     known or "none")
 
     def _dead(self) -> tuple[int, ...]:
         """The re-plan epoch: the plan's robots known dead (a robot that never took part
@@ -190,7 +226,7 @@ class OfflineRunner:
         if self.lane is not None:
             at, route = self.lane.at, self.lane.walk(route)
         mine = ReplanReport(self.robot, self.incarnation, dead, at, route,
-                            pack_covered(m.covered))
+                            pack_covered(m.covered), self.hardware.state.sim_time)
         self.board.on_report(keys.replan(self.bus.mission, self.robot), mine)
         self._announce(keys.replan(self.bus.mission, self.robot), mine)
         stopped = time.monotonic()
@@ -215,6 +251,7 @@ class OfflineRunner:
                     self.lane.rejoin()
                     self.bodies.on_replan(routes, self.board.positions(dead))
                 self._epoch = dead
+                self._still_since = time.monotonic()
                 # how long the reports and the re-plan took: a crowded fleet's stall
                 done = time.monotonic()
                 self.event("replanned", None, f"dead {list(dead)}, digest {inputs.digest[:16]}, "

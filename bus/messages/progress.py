@@ -66,8 +66,10 @@ class AgentState:
 class ReplanReport:
     """What a survivor holds when it stops to re-plan after deaths (offline agents with
     ``--recovery rebalance``): the robots it knows dead (the re-plan's epoch), the cycle index
-    it stands on, the cycle indices it is still to walk, and every cycle index it knows
-    covered (``pack_covered``). Every survivor re-plans from the same set of reports."""
+    it stands on, the cycle indices it is still to walk, every cycle index it knows covered
+    (``pack_covered``) and its simulated time when it stopped (the places it is heard of
+    later were walked after the report: agent.offline.bodies). Every survivor re-plans from
+    the same set of reports."""
 
     KIND: ClassVar[str] = "replan_report"
     robot: int
@@ -76,6 +78,7 @@ class ReplanReport:
     position: int
     route: tuple[int, ...]
     covered: bytes
+    sim_time: float
 
 
 @dataclass(frozen=True)

@@ -46,7 +46,7 @@ from bus.messages.world import BumpEvent, CoverEvent, GroundTruthPose, RobotTrut
 # recordings of the others unreadable.
 # 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims; 3: TreeReport.gone/.dead;
 # 4: RobotStatus.roster; 5: Heartbeat.said/.heard
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 
 class QosClass(enum.Enum):
@@ -169,7 +169,7 @@ KINDS: tuple[Kind, ...] = (
          C.STREAM, since=2),
     # a survivor's input to the re-plan after a death: the others wait for it
     Kind(ReplanReport, (family("replan/{robot}", access=BY_OWN, cache=STATE_CACHE),),
-         C.CRITICAL, since=3),
+         C.CRITICAL, since=6),
     # a crowded fleet's re-plan, computed by one survivor, checked and walked by the others
     Kind(ReplanShare, (family("replanned/{robot}", access=BY_OWN, cache=STATE_CACHE),),
          C.CRITICAL, since=5),

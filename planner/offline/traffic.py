@@ -46,6 +46,9 @@ class Peer:
     position: int
     ahead: tuple[int, ...] = ()
     returning: bool = False  # its next place is on its way back to its plan
+    # its next places are not known (a fleet robot's knowledge, agent.offline.bodies): it
+    # may be waiting on this robot, which it cannot be when it is known to be parked
+    lost: bool = False
 
 
 @dataclass(frozen=True)
@@ -116,6 +119,7 @@ class Traffic:
     back: list[int] = field(default_factory=list)  # places to walk back through, last first
     counts: TrafficCounts = field(default_factory=TrafficCounts)
     _held: bool = False
+    _aside_for: Peer | None = None  # the body with lost next places this one stepped aside for
 
     def ahead(self, route: Sequence[int]) -> tuple[int, ...]:
         """The next places this body is to walk: back to its plan, then ``route`` (nothing
@@ -136,6 +140,7 @@ class Traffic:
     def rejoin(self) -> None:
         """A re-plan starts from where the body stands: forget the way back."""
         self.back.clear()
+        self._aside_for = None
 
     def decide(self, plan_next: int | None, peers: Sequence[Peer]) -> Step:
         """This step's move given the plan's next place (None: nothing to walk)."""
@@ -145,6 +150,12 @@ class Traffic:
             return self._make_way(occupant, peers)
         if want == self.at:
             return Go(want, on_plan=True)  # the plan walks on from where the body stands
+        if self._aside_for is not None:
+            if self.back and self._aside_for in peers:
+                # stepped aside for a body whose next places are lost: wait here until it
+                # moves or is heard of (walking back at once, the two would take turns)
+                return self._hold(self._aside_for)
+            self._aside_for = None
         blocker = occupant.get(want)
         on_plan = want == plan_next
         if blocker is None and (on_plan or not self._gives_way(want, peers)):
@@ -152,11 +163,20 @@ class Traffic:
             return Go(want, on_plan=on_plan)
         if blocker is not None:
             ring = self._ring(want, occupant)
+            if ring is None and blocker.lost:
+                # it may wait for this robot: waiting for it too, both would wait for good;
+                # where its view of this robot is right it sees the ring and names the same
+                # yielder
+                ring = [blocker]
             if ring is not None and self._yielder(ring, occupant) == self.robot:
                 aside = self._aside(occupant, peers, avoid=want)
                 if aside is not None:
                     self._held = False
+                    self._aside_for = blocker if blocker.lost else None
                     return Go(aside, on_plan=False)
+        return self._hold(blocker)
+
+    def _hold(self, blocker: Peer | None) -> Hold:
         if not self._held:
             self._held = True
             self.counts.waits += 1
@@ -237,8 +257,10 @@ class Traffic:
                 self.back.append(self.at)
         else:
             self.back.clear()
+            self._aside_for = None
         self.at = step.target
 
     def bumped(self) -> None:
         """The world refused the last Go: a body was in the way after all."""
         self.counts.bumps += 1
+        self._aside_for = None
