@@ -278,11 +278,12 @@ def test_a_peer_that_walked_far_along_its_new_route_before_this_re_plan_landed_s
 
 def test_a_peer_that_walked_on_and_stepped_aside_before_this_re_plan_landed_is_expected_back(
         ) -> None:
-    """A CI rehearsal's stall (2026-12-05): a survivor walked part of its new route, then
-    stepped aside for a robot, all before a slower survivor applied the re-plan. Its latest
-    place was off its new route, so it was put back where it reported, and its next
-    heartbeat placed it off its route with next places unknown: a robot it waited on then
-    waited on it, for good. It is now placed aside, expected back where it left its route."""
+    """The likely cause of a CI rehearsal's stall (2026-12-05): a survivor walked part of its
+    new route, then stepped aside for a robot, all before a slower survivor applied the
+    re-plan. Its latest place was off its new route, so it was put back where it reported,
+    and its next heartbeat placed it off its route with next places unknown: a robot it
+    waited on then waited on it, for good. It is now placed aside, expected back where it
+    left its route."""
     cycle = corridor(16)  # sub-cells (0..1, 0..31)
     top = [cycle.position(s) for s in row(0, range(32))]
     plan = Plan("opt", cycle, (RobotPlan(0, (1, 31), cycle.position((1, 31)), (), ((1, 31),)),

@@ -154,7 +154,7 @@ class Bodies:
         Put back where it reported when its latest place was off its new route, a survivor
         that had stepped aside after walking on was later placed by its heartbeat off its
         route, its next places unknown (a robot meeting it there waited for good for a
-        robot waiting on it: the stall of a CI rehearsal, 2026-12-05)."""
+        robot waiting on it: the likely cause of a CI rehearsal's stall, 2026-12-05)."""
         for robot, route in routes.items():
             walk = self.walks.get(robot)
             if walk is None:
