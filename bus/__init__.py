@@ -8,7 +8,8 @@ drops     DropCounter for malformed and overflowing messages
 qos       the Zenoh priority / congestion control of each QoS class of the schema
 config    command-line options -> ConnectionSettings -> zenoh.Config; open_session
 bridge    Bus: asyncio pub/sub, queries, queryables and liveliness over one session
-liveness  FailureDetector (sans-I/O), HeartbeatPublisher, LivelinessService
+detector  FailureDetector: who is dead, from heartbeats, tokens and notices (sans-I/O)
+liveness  HeartbeatPublisher, LivelinessService: the token, heartbeats and the detector's I/O
 announce  Announcer: periodically re-published, queryable state
 inbox     thread-to-loop hand-off buffers and their policies (LatestWins, BoundedFifo)
 router    the embedded router (``mstc router``) and a helper to start it as a process

@@ -14,10 +14,10 @@ from pathlib import Path
 from agent.core.config import (
     DEFAULT_ANNOUNCE_PERIOD,
     DEFAULT_BOOT_TIMEOUT,
-    DEFAULT_HEARTBEAT_PERIOD,
     DEFAULT_START_TIMEOUT,
 )
 from bus.config import DEFAULT_LEASE_MS
+from bus.detector import DEFAULT_HEARTBEAT_PERIOD
 from deploy.errors import UsageError
 from deploy.monitor.coverage import reachable_sub_cells
 from planner.algorithms import Family, algorithm

@@ -206,7 +206,7 @@ def test_a_robots_own_death_notice_fences_it_and_is_no_peers_death() -> None:
 
 
 def test_a_vanished_token_of_an_unknown_fenced_life_stays_dead() -> None:
-    from bus.liveness import FailureDetector
+    from bus.detector import FailureDetector
 
     detector = FailureDetector(timeout=1.0)
     detector.on_death_notice(DeathNotice(1, 3, 0, "token", 0.0))

@@ -18,8 +18,8 @@ from test_bus_schema import EXAMPLES
 from bus import codec, keys
 from bus.bridge import Bus
 from bus.codec import decode, decode_any, encode
+from bus.detector import FailureDetector
 from bus.errors import DecodeError
-from bus.liveness import FailureDetector
 from bus.messages import (
     DeathNotice,
     unpack_covered,

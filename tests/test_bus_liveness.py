@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bus.liveness import FailureDetector
+from bus.detector import FailureDetector
 from bus.messages import DeathNotice, Heartbeat
 
 

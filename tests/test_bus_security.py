@@ -23,8 +23,8 @@ from bus import keys
 from bus.bridge import Bus
 from bus.codec import decode, encode
 from bus.config import ConnectionSettings, TlsFiles, insert_values, make_zenoh_config
+from bus.detector import FailureDetector
 from bus.errors import ConfigError
-from bus.liveness import FailureDetector
 from bus.messages import AdminCommand, AdminReply, DeathNotice, Heartbeat
 from bus.messages.schema import ALIVE, FAMILIES
 from bus.router import start_router_process, stop_process

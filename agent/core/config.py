@@ -13,16 +13,13 @@ from dataclasses import dataclass
 from agent.core.errors import ConfigError
 from bus import argtypes
 from bus.argtypes import index, non_negative, positive, positive_int
+from bus.detector import DEFAULT_HEARTBEAT_PERIOD, DEFAULT_TOKEN_GRACE
 
 DEFAULT_START_TIMEOUT = 30.0
 # A robot never heard this long after one's own gather began takes no part (it never booted,
 # or died before it could announce its start); a loaded host boots a fleet in a few seconds.
 DEFAULT_BOOT_TIMEOUT = 10.0
-DEFAULT_HEARTBEAT_PERIOD = 0.2
 DEFAULT_DEAD_AFTER = 3.0
-# A vanished liveliness token is confirmed after this grace (bus.liveness), which also sets
-# how often the liveness service wakes (every min(heartbeat period, grace) / 2).
-DEFAULT_TOKEN_GRACE = 0.1
 # The tree agent re-announced every 1.0 s, the two others every 0.5 s; 0.5 is kept for all:
 # the offline and ORMSTC agents also pace their gather and refresh wake-ups with it, while
 # the tree agent only re-publishes its status with it (a few small messages more per second).
