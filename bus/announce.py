@@ -24,23 +24,34 @@ class Announcer:
         self.query_key = query_key
         self.period = period
         self._state: dict[str, Any] = {}
+        self._quiet: set[str] = set()
 
     def set(self, key: str, msg: Any, *, publish: bool = True) -> None:
-        """Remember ``msg`` as the current message on ``key`` (and publish it now)."""
+        """Remember ``msg`` as the current message on ``key`` (and publish it now); it is
+        re-published each period again if it was :meth:`quiet`."""
         self._state[key] = msg
+        self._quiet.discard(key)
         if publish:
             self.bus.publish(key, msg)
 
+    def quiet(self, key: str) -> None:
+        """Stop re-publishing the message held on ``key``; queries are still answered with
+        it (for a message those who still need it pull, and the others no longer do)."""
+        if key in self._state:
+            self._quiet.add(key)
+
     def remove(self, key: str) -> None:
         self._state.pop(key, None)
+        self._quiet.discard(key)
 
     def messages(self) -> list[Any]:
         return list(self._state.values())
 
     def repeats(self, key: str) -> bool:
         """Whether the message held on ``key`` is re-published each period (it is answered
-        to queries either way); every one here, a subclass may hold some back."""
-        return True
+        to queries either way): every one not made :meth:`quiet`; a subclass may hold more
+        back."""
+        return key not in self._quiet
 
     def announce(self) -> None:
         """Publish every held message that :meth:`repeats` once more."""

@@ -69,3 +69,24 @@ def test_without_a_holder_rule_every_held_message_is_re_announced() -> None:
     announcer.set(keys.death(MISSION, 2), notice, publish=False)
     announcer.announce()
     assert bus.published == [keys.death(MISSION, 2)]
+
+
+def test_a_quiet_message_is_answered_to_queries_but_not_re_announced_until_set_again() -> None:
+    """A survivor's re-plan report once it has re-planned (agent.offline.runner): whoever
+    still misses it pulls it."""
+    bus, holder = RecordingBus(), [True]
+    announcer = _announcer(bus, holder)
+    death = keys.death(MISSION, 2)
+    announcer.quiet(death)
+    announcer.announce()
+    assert bus.published == [keys.status(MISSION, 4)]  # a holder, but the death is quiet
+    assert any(isinstance(m, DeathNotice) for m in announcer.messages())
+    notice = DeathNotice(robot=2, incarnation=2, detected_by=4, reason="token", detected_at=2.0)
+    announcer.set(death, notice, publish=False)  # a new message on the key speaks again
+    announcer.announce()
+    assert bus.published[1:] == [keys.status(MISSION, 4), death]
+    announcer.quiet(keys.death(MISSION, 9))  # nothing held there: nothing to quiet
+    announcer.remove(death)
+    announcer.set(death, notice, publish=False)
+    announcer.announce()
+    assert bus.published[3:] == [keys.status(MISSION, 4), death]

@@ -339,3 +339,36 @@ def test_pulls_in_turn_ask_every_robot_within_k_over_count_pulls() -> None:
         asked += chosen
     assert set(asked) == set(peers)  # 100 asks of 98 robots: two asked twice
     assert next_in_turn(peers[:7], 40, 25) == (peers[:7], 0)  # fewer than asked: all of them
+
+
+async def test_a_survivor_that_re_planned_answers_its_report_but_no_longer_repeats_it(
+        ) -> None:
+    """Every survivor re-publishing its report (~1 kB) each period for the rest of the
+    mission flooded a slow link between hosts (docs/operations.md): once re-planned, the
+    report is made quiet; a survivor still missing it pulls it (the state query answers
+    quiet messages too)."""
+    from planner.offline.machine import OfflineRobot
+
+    plan = _plan()
+    board = _board(plan, share_from=99)  # below the crowd: each survivor computes
+    machine = OfflineRobot(plan, 2, takeover=False)
+    machine.on_dead(1)
+    announced: list[str] = []
+    quieted: list[str] = []
+
+    async def wait_news(timeout: float) -> None:
+        await asyncio.sleep(min(timeout, 0.01))
+
+    async def refresh() -> None:
+        return None
+
+    runner = OfflineRunner(SimpleNamespace(mission="m", publish=lambda key, msg: None),  # type: ignore[arg-type]
+                           SimpleNamespace(state=SimpleNamespace(sim_time=3.0)),  # type: ignore[arg-type]
+                           SimpleNamespace(wait_news=wait_news),  # type: ignore[arg-type]
+                           machine, 1, refresh=refresh, refresh_period=0.05, board=board,
+                           announce=lambda key, msg: announced.append(key),
+                           quiet=quieted.append)
+    await asyncio.wait_for(runner._replan(), 30)
+    assert announced == [keys.replan("m", 2)]  # announced when it stopped ...
+    assert quieted == [keys.replan("m", 2)]  # ... and quiet once the re-plan is walked
+    assert machine.pending_route, "it has a re-plan to walk"

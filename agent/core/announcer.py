@@ -43,6 +43,8 @@ class StateAnnouncer(Announcer):
         self._death_holder = death_holder
 
     def repeats(self, key: str) -> bool:
+        if not super().repeats(key):
+            return False
         if self._death_holder is None:
             return True
         parsed = keys.parse(key)

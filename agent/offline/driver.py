@@ -408,6 +408,7 @@ class OfflineAgent(BodyAgent):
                                     refresh_period=pull_period(self.config.announce_period,
                                                                self.config.k),
                                     board=self.board, announce=self.announcer.set,
+                                    quiet=self.announcer.quiet,
                                     bodies=self.bodies)
         self.phase = "driving"
         self._status("covering")

@@ -74,6 +74,7 @@ class OfflineRunner:
                  crowd: CrowdPulls | None = None,
                  board: ReplanBoard | None = None,
                  announce: Callable[[str, Any], None] | None = None,
+                 quiet: Callable[[str], None] | None = None,
                  bodies: Bodies | None = None) -> None:
         self.bus = bus
         self.hardware = hardware
@@ -95,6 +96,7 @@ class OfflineRunner:
         # dead robots of the last re-plan (its epoch)
         self.board = board
         self._announce = announce
+        self._quiet = quiet
         self._epoch: tuple[int, ...] = ()
         # --recovery rebalance: the other bodies as known, and this body's deconfliction
         self.bodies = bodies
@@ -252,6 +254,11 @@ class OfflineRunner:
                     self.bodies.on_replan(routes, self.board.positions(dead))
                 self._epoch = dead
                 self._still_since = time.monotonic()
+                if self._quiet is not None:
+                    # re-planned: a survivor still missing our report pulls it (every
+                    # survivor re-publishing its report each period for the rest of the
+                    # mission flooded a slow link between hosts: docs/operations.md)
+                    self._quiet(keys.replan(self.bus.mission, self.robot))
                 # how long the reports and the re-plan took: a crowded fleet's stall
                 done = time.monotonic()
                 self.event("replanned", None, f"dead {list(dead)}, digest {inputs.digest[:16]}, "
