@@ -1,15 +1,8 @@
 """Who is alive: a robot's token and heartbeats, and the async service that feeds the
-sans-I/O failure detector (bus.detector) from the wire and broadcasts its verdicts.
-
-Two signals. A robot's liveliness token ``mstc/<m>/alive/<r>/<i>`` disappears ~3 ms after its
-process dies (the TCP close is seen at once) or ~0.75 x lease after the process hangs
-entirely. Heartbeats cover the other hang: a process whose event loop is stuck while Zenoh's
-threads still keep its transport (and token) alive. Token deletions are confirmed after a
-short grace so that losing *our own* router (which deletes everybody's token locally) is
-not mistaken for a massacre: while disconnected nothing expires, and on reconnection every
-peer gets a fresh timeout. A link that drops and comes back between two looks at it does the
-same unseen, so the service also asks the router which tokens it still holds before a
-deletion counts (FailureDetector.on_token_census).
+sans-I/O failure detector (bus.detector, whose docstring says what each signal covers) from
+the wire and broadcasts its verdicts. The service also asks the router which tokens it
+still holds before a token deletion counts (a census): a link that drops and comes back
+between two looks makes Zenoh delete every remote token locally.
 """
 
 from __future__ import annotations
