@@ -9,10 +9,16 @@ from test_monitor_fixtures import M, open_room, run_mission, two_robot_walks
 from test_monitor_tree import _reports, _status
 
 from bus import keys
-from bus.messages import MissionStatus, OrmstcCompletion, RobotEvent, RobotStatus
-from deploy.monitor.app import PlainScreen, Watcher, replay
+from bus.messages import (
+    DeathNotice,
+    MissionStatus,
+    OrmstcCompletion,
+    RobotEvent,
+    RobotStatus,
+)
+from deploy.monitor.app import GONE_GRACE_S, PlainScreen, Watcher, replay
 from deploy.monitor.plain import PlainPrinter, status_line
-from deploy.monitor.types import Header, Record, Recording
+from deploy.monitor.types import Header, Record, Recording, TokenChange
 from deploy.monitor.verdict import mission_verdict
 
 
@@ -102,3 +108,34 @@ def test_a_robot_status_of_done_counts_as_its_completion() -> None:
     records = [Record(0.1, keys.status(M, 0), RobotStatus(0, 1, (0, 0), "ormstc", "", "done"))]
     verdict = mission_verdict(_watch(records)[0].model)
     assert verdict is not None and "coverage unknown" in verdict.message
+
+
+def test_a_verdict_on_robots_gone_only_by_their_tokens_ends_a_watch_after_a_grace() -> None:
+    """A link between hosts that drops for a moment takes every far token with it: a
+    monitor with ``--exit-when-done`` ended a live mission at 11.2 s that way, most likely
+    (docs/operations.md, "Slow links between hosts"). A verdict that counts a robot over
+    only by its vanished token now ends the watch once it has held GONE_GRACE_S; a token
+    back in time undoes it, and a death notice needs no wait."""
+    now = [100.0]
+    watcher = Watcher(PlainScreen(PlainPrinter(io.StringIO())), clock=lambda: now[0])
+    for record in _ormstc_records()[:6]:  # both robots joined, nothing covered yet
+        watcher.feed([record])
+    gone = [Record(2.0, keys.alive(M, r, 1), TokenChange(r, 1, False), "token")
+            for r in (0, 1)]
+    watcher.feed(gone)
+    assert watcher.verdict is not None and watcher.verdict.state == "failed"
+    assert not watcher.settled()
+    now[0] += GONE_GRACE_S - 0.1
+    assert not watcher.settled()
+    watcher.feed([Record(3.0, keys.alive(M, 0, 1), TokenChange(0, 1, True), "token")])
+    assert watcher.verdict is None and not watcher.settled()  # robot 0 is back
+    watcher.feed([gone[0]])
+    now[0] += GONE_GRACE_S
+    assert watcher.settled()
+    # a robot declared dead by a peer ends the watch at once
+    watcher = Watcher(PlainScreen(PlainPrinter(io.StringIO())), clock=lambda: now[0])
+    for record in _ormstc_records()[:6]:
+        watcher.feed([record])
+    watcher.feed([*gone, *(Record(2.1, keys.death(M, r), DeathNotice(r, 1, None, "token", 2.1))
+                           for r in (0, 1))])
+    assert watcher.settled()

@@ -42,6 +42,12 @@ FEED_BATCH = 2000
 REFRESH_S = 0.25
 WORLD_PERIOD_S = 2.0
 RENDER_SHARE = 5.0
+# A verdict read off the robots' messages that counts a robot as over only because its
+# token vanished ends a watch (--exit-when-done) only once it has held this long: a link
+# between hosts that drops for a moment takes every far token with it, and the robots
+# themselves confirm such a loss before they act on it (bus.detector). 5 s: longer than
+# the agents take to declare a death they saw (a grace, or the heartbeat timeout).
+GONE_GRACE_S = 5.0
 CONNECT_POLL_S = 0.1
 
 
@@ -128,8 +134,11 @@ class Watcher:
     """Model + screen + optional recorder, fed with records."""
 
     def __init__(self, screen: Screen, recorder: Recorder | None = None,
-                 model: FleetModel | None = None) -> None:
+                 model: FleetModel | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.model = model or FleetModel()
+        self._clock = clock
+        self._judged_at = 0.0  # when the verdict last took its state (clock time)
         self.screen = screen
         self.recorder = recorder
         self.connected = False
@@ -168,6 +177,8 @@ class Watcher:
         (ORMSTC and tree missions publish none) is told as an event of its own, and judged
         again as they go on (a robot thought dead may come back)."""
         before, self.verdict = self.verdict, mission_verdict(self.model)
+        if self.verdict is not None and (before is None or before.state != self.verdict.state):
+            self._judged_at = self._clock()
         if self.verdict is not None and not self.verdict.published and \
                 (before is None or before.state != self.verdict.state):
             state = self.verdict.state
@@ -176,9 +187,15 @@ class Watcher:
                 f"mission {state}: {self.verdict.message}")])
 
     def settled(self) -> bool:
-        """The mission has a final verdict and every robot is done, dead or gone."""
-        return self.verdict is not None and all(
-            v.done or v.dead or v.left for v in self.model.robots.values())
+        """The mission has a final verdict and every robot is done, dead or gone; a verdict
+        read off a robot known gone only by its vanished token has held GONE_GRACE_S."""
+        robots = self.model.robots.values()
+        if self.verdict is None or not all(v.done or v.dead or v.left for v in robots):
+            return False
+        token_only = any(v.token_lost is not None and v.death is None and not v.failed
+                         and not v.done and not v.left for v in robots)
+        return self.verdict.published or not token_only or \
+            self._clock() - self._judged_at >= GONE_GRACE_S
 
 
 async def watch_live(settings: ConnectionSettings, watcher: Watcher, *,
