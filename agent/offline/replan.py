@@ -171,7 +171,7 @@ class ReplanBoard:
         return [r for r in self.members if r not in dead
                 and (r not in self.reports or self.reports[r].dead != dead)]
 
-    def positions(self, dead: tuple[int, ...]) -> dict[int, tuple[int, float]]:
+    def stops(self, dead: tuple[int, ...]) -> dict[int, tuple[int, float]]:
         """Where each robot of epoch ``dead`` reported to stand, and its simulated time then."""
         return {r: (report.position, report.sim_time) for r, report in self.reports.items()
                 if r not in dead and report.dead == dead}

@@ -251,7 +251,7 @@ class OfflineRunner:
                 m.on_replan(route)
                 if self.lane is not None and self.bodies is not None:
                     self.lane.rejoin()
-                    self.bodies.on_replan(routes, self.board.positions(dead))
+                    self.bodies.on_replan(routes, self.board.stops(dead))
                 self._epoch = dead
                 self._still_since = time.monotonic()
                 if self._quiet is not None:

@@ -177,10 +177,10 @@ class Watcher:
         (ORMSTC and tree missions publish none) is told as an event of its own, and judged
         again as they go on (a robot thought dead may come back)."""
         before, self.verdict = self.verdict, mission_verdict(self.model)
-        if self.verdict is not None and (before is None or before.state != self.verdict.state):
-            self._judged_at = self._clock()
-        if self.verdict is not None and not self.verdict.published and \
-                (before is None or before.state != self.verdict.state):
+        if self.verdict is None or (before is not None and before.state == self.verdict.state):
+            return
+        self._judged_at = self._clock()
+        if not self.verdict.published:
             state = self.verdict.state
             self.screen.events([self.model.note(
                 self.model.t, "mission_complete" if state == "complete" else "mission_failed",
@@ -192,9 +192,7 @@ class Watcher:
         robots = self.model.robots.values()
         if self.verdict is None or not all(v.done or v.dead or v.left for v in robots):
             return False
-        token_only = any(v.token_lost is not None and v.death is None and not v.failed
-                         and not v.done and not v.left for v in robots)
-        return self.verdict.published or not token_only or \
+        return self.verdict.published or not any(v.gone_by_token_only for v in robots) or \
             self._clock() - self._judged_at >= GONE_GRACE_S
 
 

@@ -58,6 +58,12 @@ class RobotView:
         return not self.left and (self.failed or self.death is not None
                                   or self.token_lost is not None)
 
+    @property
+    def gone_by_token_only(self) -> bool:
+        """Counted over only because its liveliness token vanished: no death notice, no
+        failure, no completion, no leave (a link that dropped for a moment looks the same)."""
+        return self.dead and not self.done and not self.failed and self.death is None
+
 
 class Roster:
     """The robots heard of, by id; messages naming no valid robot are counted, not kept."""
