@@ -7,6 +7,13 @@ say the mission completed, and the recording must pass ``mstc report``'s invaria
 
 from __future__ import annotations
 
+import contextlib
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -180,6 +187,42 @@ async def test_a_campaign_runs_at_most_jobs_trials_at_once_and_a_host_starver_al
     assert max(n for n, _ in seen) == 3, seen  # side by side, never more than three
     assert all(n == 1 for n, starver in seen if starver), seen  # the starver alone
     assert sum(starver for _, starver in seen) == 3
+
+
+@pytest.mark.integration
+@pytest.mark.skipif(shutil.which("setpriv") is None, reason="no setpriv (util-linux) here")
+def test_a_killed_campaign_leaves_no_busy_process_spinning() -> None:
+    # The campaign's process is killed (SIGKILL: no cleanup runs) during a starve-host fault.
+    script = ("import sys, time\n"
+              "from deploy.chaos.inject import busy_processes\n"
+              "print(*(p.pid for p in busy_processes(2)), flush=True)\n"
+              "time.sleep(60)\n")
+    campaign = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                                text=True)
+    assert campaign.stdout is not None
+    hogs = [int(pid) for pid in campaign.stdout.readline().split()]
+    try:
+        assert len(hogs) == 2 and all(_running(pid) for pid in hogs)
+        campaign.kill()
+        campaign.wait(10)
+        deadline = time.monotonic() + 10.0
+        while any(_running(pid) for pid in hogs) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not any(_running(pid) for pid in hogs), "a busy process outlived the campaign"
+    finally:
+        campaign.kill()
+        for pid in hogs:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+
+
+def _running(pid: int) -> bool:
+    """Whether ``pid`` is a live process (a zombie nobody has reaped yet is not)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state not in ("Z", "X")
 
 
 def test_a_robot_cut_off_past_the_lease_is_no_false_suspicion(tmp_path: Path) -> None:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from bus.router import READY_MARK
 from deploy.chaos.schedule import Fault
-from deploy.fleet import mstc_argv
+from deploy.fleet import ended_with_launcher, mstc_argv
 
 
 class InjectionError(RuntimeError):
@@ -209,9 +209,7 @@ class Injector:
         return False
 
     async def _starve_host(self, fault: Fault) -> None:
-        hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"],
-                                 stdin=subprocess.DEVNULL, start_new_session=True)
-                for _ in range(os.cpu_count() or 1)]
+        hogs = busy_processes(os.cpu_count() or 1)
         try:
             await asyncio.sleep(fault.seconds)
         finally:
@@ -250,6 +248,14 @@ async def _throttle(pid: int, seconds: float, share: float) -> None:
             await asyncio.sleep(running)
     finally:
         _signal(pid, signal.SIGCONT)
+
+
+def busy_processes(count: int) -> list[subprocess.Popen[bytes]]:
+    """``count`` processes that spin on a CPU each until killed, or until this process
+    dies: a campaign killed during a starve-host fault left them spinning for good."""
+    return [subprocess.Popen(ended_with_launcher([sys.executable, "-c", "while True: pass"]),
+                             stdin=subprocess.DEVNULL, start_new_session=True)
+            for _ in range(count)]
 
 
 def _signal(pid: int, sig: int) -> None:

@@ -29,7 +29,7 @@ from typing import Any
 from bus.faults import ENV as FAULTS_ENV
 from deploy.chaos.inject import Injector, RouterProcess
 from deploy.chaos.schedule import Trial
-from deploy.fleet import mstc_argv
+from deploy.fleet import ended_with_launcher, mstc_argv
 from deploy.settings import NOT_CARRIED_OUT, KillOrder
 from planner.maps import resolve_world
 
@@ -113,7 +113,10 @@ async def run_trial(trial: Trial, workdir: Path) -> Outcome:
         env[FAULTS_ENV] = trial.messages
     try:
         with (workdir / "up.log").open("wb") as out:
-            up = subprocess.Popen(up_argv(trial, router.endpoint, run_dir, record),
+            # ended with this process: a campaign killed by SIGTERM left the trial's
+            # fleet running (its router, a child of ours, gone with us)
+            up = subprocess.Popen(ended_with_launcher(up_argv(trial, router.endpoint, run_dir,
+                                                              record)),
                                   stdin=subprocess.DEVNULL, stdout=out,
                                   stderr=subprocess.STDOUT, env=env, start_new_session=True)
         t0 = time.monotonic()
