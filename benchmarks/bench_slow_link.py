@@ -2,7 +2,8 @@
 mission, and what a narrower one does (docs/operations.md, "Several hosts").
 
     .venv/bin/python benchmarks/bench_slow_link.py [--rates 1mbit,100kbit,64kbit]
-        [--router-lease-ms 1000] [--algo opt] [--time-scale 50] [--limit 300] [--logs DIR]
+        [--router-lease-ms 1000] [--router-sndbuf BYTES] [--algo opt] [--time-scale 50]
+        [--limit 300] [--logs DIR]
 
 Two network namespaces on one switch (deploy.chaos.hosts; needs root), the link of the far
 host shaped by ``tc tbf`` in both directions (rate, 8 kB burst, 300 ms of queue). The near
@@ -15,6 +16,7 @@ robot's exit code (4: fenced), the deaths declared and why, and what the link ca
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import subprocess
 import tempfile
@@ -55,6 +57,16 @@ def _carried(namespace: str, device: str) -> str:
         f"{int(found[1]) / 1000:.0f} kB in {found[2]} packets, {found[3]} dropped"
 
 
+def _buffers(size: int | None, logs: Path) -> tuple[str, ...]:
+    """The routers' --zenoh-config setting their TCP socket buffers to ``size`` bytes."""
+    if size is None:
+        return ()
+    config = logs / "router-buffers.json5"
+    buffers = {"so_sndbuf": size, "so_rcvbuf": size}
+    config.write_text(json.dumps({"transport": {"link": {"tcp": buffers}}}) + "\n")
+    return ("--zenoh-config", str(config))
+
+
 def trial(rate: str, args: argparse.Namespace, logs: Path) -> None:
     started: dict[str, subprocess.Popen[bytes]] = {}
 
@@ -71,7 +83,7 @@ def trial(rate: str, args: argparse.Namespace, logs: Path) -> None:
         hub, port = f"{tag}-hub", f"{tag}p1"[-15:]  # the switch's end of the far link
         _shape(far.name, far.link, rate)
         _shape(hub, port, rate)
-        lease = ("--lease-ms", str(args.router_lease_ms))
+        lease = ("--lease-ms", str(args.router_lease_ms), *_buffers(args.router_sndbuf, logs))
         link = ("--mode", "client", "--mission", MISSION)
         try:
             log = start("router-0", near, "router", "--listen", near.endpoint,
@@ -121,6 +133,9 @@ def main() -> None:
                         help="comma-separated tc rates of the far host's link")
     parser.add_argument("--router-lease-ms", type=int, default=1000,
                         help="the two routers' transport lease (the agents keep 1000)")
+    parser.add_argument("--router-sndbuf", type=int, default=None,
+                        help="the two routers' TCP send and receive buffers in bytes "
+                             "(default: the kernel's)")
     parser.add_argument("--algo", default="opt")
     parser.add_argument("--time-scale", type=float, default=50.0)
     parser.add_argument("--limit", type=float, default=300.0,
