@@ -16,6 +16,7 @@ from planner.grid import FAR, WorkArea, expand, work_area
 from planner.invariants import check_path_moves
 from planner.maps import resolve_world
 from planner.offline import rebalance as rebalance_module
+from planner.offline import shortest
 from planner.offline.rebalance import (
     RECOVERIES,
     Replan,
@@ -178,13 +179,20 @@ def masked(seed: int) -> Cycle:
 
 
 @pytest.mark.slow  # over 4 s (the quick loop stays near a minute)
-def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
+@pytest.mark.parametrize("all_pairs", [True, False], ids=["table", "windows"])
+def test_the_windowed_searches_give_shortest_distances_and_paths(
+        all_pairs: bool, monkeypatch: pytest.MonkeyPatch) -> None:
     """Grid searches a window round two near places first (planner.offline.shortest.Grid).
     From two sources of one winding grid (seed 2) to every place within NEAR: every
     distance equals the whole-grid search's, every path is that long, a walk of 4-adjacent
     moves, and it goes round a sub-cell avoided when it can. Source 642 has places the
-    window reaches only the long way round (checked): the whole grid must take over."""
+    window reaches only the long way round (checked): the whole grid must take over. The
+    grid's 968 places are few enough for the table of every distance; without it
+    (``windows``) the distances come from the searches."""
+    if not all_pairs:
+        monkeypatch.setattr(shortest, "ALL_PAIRS_MAX", 0)
     cycle = masked(2)
+    tabled = Grid(cycle)  # with the table, one Grid: its table is all that it holds
     window_alone_wrong = 0
     for a in (642, 1000):
         searcher, whole = Grid(cycle), Grid(cycle).from_source(a)
@@ -196,7 +204,8 @@ def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
             box, _ = searcher._window(a, b)
             inside = searcher._bfs(a, frozenset(), box)[rb - box[0], cb - box[2]]
             window_alone_wrong += bool(inside < FAR and inside != whole[rb, cb])
-            assert Grid(cycle).distance(a, b) == whole[rb, cb]  # fresh: nothing cached
+            fresh = tabled if all_pairs else Grid(cycle)  # the searches: nothing cached
+            assert fresh.distance(a, b) == whole[rb, cb]
             path = searcher.path(a, b)
             assert len(path) == whole[rb, cb] and (not path or path[-1] == b)
             check_path_moves([cycle.at(i) for i in (a, *path)])
@@ -208,6 +217,26 @@ def test_the_windowed_searches_give_shortest_distances_and_paths() -> None:
                 if around[rb, cb] < FAR:
                     assert len(detour) == around[rb, cb] and not avoid & set(detour)
     assert window_alone_wrong >= 3
+
+
+def test_a_small_map_s_table_of_distances_agrees_with_the_searches(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a map of at most ALL_PAIRS_MAX places every distance is found at once: from each
+    of a few sources (one in a pocket of its own) to every place it equals the whole-grid
+    breadth-first search (FAR where none leads), and ``distances`` gives the same matrix
+    with the table as without it."""
+    cycle = masked(3)
+    assert cycle.n <= shortest.ALL_PAIRS_MAX
+    maps = Grid(cycle)
+    sources = [0, 17, cycle.n // 2, cycle.n - 1]
+    places = list(range(cycle.n))
+    table = maps.distances(sources, places)
+    for row, a in zip(table, sources, strict=True):
+        whole = Grid(cycle).from_source(a)
+        assert row.tolist() == [int(whole[tuple(cycle.at(b))]) for b in places]
+    assert (table >= FAR).any() and (table < FAR).any()  # some places are cut off
+    monkeypatch.setattr(shortest, "ALL_PAIRS_MAX", 0)
+    assert np.array_equal(Grid(cycle).distances(sources, places[::7]), table[:, ::7])
 
 
 def test_with_nothing_orphaned_the_routes_are_kept_when_no_cut_is_shorter() -> None:

@@ -130,7 +130,7 @@ def test_the_yielder_is_the_one_every_robot_of_the_ring_names() -> None:
     assert cycle.at(step.target) in {(1, 2), (0, 3)}  # beside it, off the other's way
 
 
-@pytest.mark.slow  # 8 s since the re-plans are refined (the quick loop stays near a minute)
+@pytest.mark.slow  # 20-60 s: 25 seeded fleets of up to 13 robots with re-plans (CI only)
 @settings(deadline=None, max_examples=25)
 @given(seed=st.integers(0, 10_000), algo=st.sampled_from(ALGOS), crowd=st.booleans())
 def test_seeded_instances_with_deaths_never_share_a_sub_cell_and_complete(

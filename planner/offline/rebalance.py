@@ -325,12 +325,11 @@ def _share(grid: Grid, covered: BoolArray, work: list[int], survivors: list[Surv
 def _piece_costs(grid: Grid, work: list[int], walked: IntArray, ends: list[int],
                  pieces: list[tuple[int, int]]) -> IntArray:
     """Moves for each survivor (row) to walk to and along each piece (column)."""
-    costs = np.empty((len(ends), len(pieces)), dtype=np.int64)
-    for j, (a, b) in enumerate(pieces):
-        inside = int(walked[b - 1] - walked[a])
-        for i, e in enumerate(ends):
-            costs[i, j] = inside + min(grid.distance(e, work[a]), grid.distance(e, work[b - 1]))
-    return costs
+    firsts, lasts = zip(*pieces, strict=True)
+    inside = walked[[b - 1 for b in lasts]] - walked[list(firsts)]
+    nearer = np.minimum(grid.distances(ends, [work[a] for a in firsts]),
+                        grid.distances(ends, [work[b - 1] for b in lasts]))
+    return (inside[None, :] + nearer).astype(np.int64)
 
 
 def _best_split(grid: Grid, work: list[int], walked: IntArray, loads: IntArray,

@@ -18,6 +18,12 @@ if TYPE_CHECKING:
 NEAR = 32  # places at most this far apart (manhattan) are searched in a window first
 MAX_ROWS = 128  # distance rows kept by Grid.rows (n int32 each: 6 MB at 12 000 places)
 UNREACHABLE = 1 << 28  # Grid.rows' moves to a place no walk reaches (sums stay in int32)
+# Up to this many places every distance is found at once, on first need (scipy, n x n int32:
+# 4 MB at 1 024; 0.05 s at 768). Four re-plans of 11 robots on 480 places asked 142 000
+# distances, and the window searches behind them took 6.2 of their 11.7 s of CPU. At 2 400
+# places a table is no faster (docs/balanced.md).
+ALL_PAIRS_MAX = 1024
+_CHUNK = 256  # sources per scipy call while the table is made (a float64 block of n each)
 
 
 class Grid:
@@ -32,7 +38,10 @@ class Grid:
     NEAR apart, the whole grid is searched (and that map kept).
     On a 45 000 sub-cell map this took a re-plan at k = 100 from about 60 s to 6-7 s.
     ``rows`` gives whole rows of distances from many sources at once (scipy), for the
-    refinement's many lookups from a few places.
+    refinement's many lookups from a few places. On maps of at most ALL_PAIRS_MAX places
+    all of this gives way to one table of every distance, made on first need: there the
+    searches cost more than the table (a re-plan of 11 robots on 908 places: 2.33 -> 1.44 s
+    of CPU, the same re-plan).
     """
 
     def __init__(self, cycle: Cycle) -> None:
@@ -42,6 +51,7 @@ class Grid:
         self._pairs: dict[tuple[int, int], int] = {}  # distances found in a window
         self._graph: csr_matrix | None = None  # the places' adjacency, for rows()
         self._rows: dict[int, IntArray] = {}
+        self._table: IntArray | None = None  # every distance, on small maps (ALL_PAIRS_MAX)
 
     def from_source(self, source: int, avoid: frozenset[int] = frozenset()) -> IntArray:
         """Moves from ``source`` to each sub-cell (grid-shaped; FAR where unreachable)
@@ -79,6 +89,11 @@ class Grid:
         return breadth_first(open_, sources)
 
     def distance(self, a: int, b: int) -> int:
+        """Moves from place ``a`` to place ``b`` (FAR where no walk leads)."""
+        n = self.cycle.n
+        if n <= ALL_PAIRS_MAX:  # indices wrap round the cycle, as Cycle.at's do
+            moves = int(self._all_pairs()[a % n, b % n])
+            return FAR if moves >= UNREACHABLE else moves
         ra, ca = self.cycle.at(a)
         rb, cb = self.cycle.at(b)
         if abs(ra - rb) + abs(ca - cb) <= 1:
@@ -98,6 +113,18 @@ class Grid:
                 self._pairs[pair] = near
                 return near
         return int(self.from_source(a)[rb, cb])
+
+    def distances(self, sources: Sequence[int], targets: Sequence[int]) -> IntArray:
+        """Moves from each of ``sources`` (rows) to each of ``targets`` (columns), int64,
+        FAR where no walk leads: one lookup on small maps, else one ``distance`` each."""
+        n = self.cycle.n
+        if n <= ALL_PAIRS_MAX:
+            found = self._all_pairs()[np.ix_(np.asarray(sources) % n,
+                                             np.asarray(targets) % n)].astype(np.int64)
+            found[found >= UNREACHABLE] = FAR
+            return found
+        return np.array([[self.distance(s, t) for t in targets] for s in sources],
+                        dtype=np.int64).reshape(len(sources), len(targets))
 
     def path(self, a: int, b: int, avoid: frozenset[int] = frozenset()) -> list[int]:
         """Cycle indices after ``a`` up to and including ``b`` on a shortest path, around
@@ -140,19 +167,34 @@ class Grid:
         UNREACHABLE where no walk leads): scipy's breadth-first searches, many sources per
         call, the last MAX_ROWS rows kept. For many distances from a few sources (the
         re-plan's refinement); scipy is imported only when this is first called."""
-        from scipy.sparse.csgraph import shortest_path
-
-        if self._graph is None:
-            self._graph = cycle_graph(self.cycle)
+        if self.cycle.n <= ALL_PAIRS_MAX:
+            table = self._all_pairs()
+            return {s: table[s % self.cycle.n] for s in dict.fromkeys(sources)}
         wanted = list(dict.fromkeys(sources))
         missing = [s for s in wanted if s not in self._rows]
         if missing:
-            found = shortest_path(self._graph, directed=False, unweighted=True,
-                                  indices=missing)
-            found[~np.isfinite(found)] = UNREACHABLE
-            for source, row in zip(missing, found.astype(np.int32), strict=True):
+            for source, row in zip(missing, self._search(missing), strict=True):
                 self._rows[source] = row
         out = {s: self._rows[s] for s in wanted}
         for source in list(self._rows)[:max(len(self._rows) - MAX_ROWS, 0)]:
             del self._rows[source]  # the oldest first; this call's rows are in ``out``
         return out
+
+    def _all_pairs(self) -> IntArray:
+        """Every distance (int32, UNREACHABLE where no walk leads), made on first need."""
+        if self._table is None:
+            places = range(self.cycle.n)
+            self._table = np.concatenate([self._search(list(places[i:i + _CHUNK]))
+                                          for i in range(0, self.cycle.n, _CHUNK)])
+        return self._table
+
+    def _search(self, sources: list[int]) -> IntArray:
+        """Moves from each of ``sources`` to every place (rows, int32, UNREACHABLE where no
+        walk leads): scipy's breadth-first searches; scipy is imported on first need."""
+        from scipy.sparse.csgraph import shortest_path
+
+        if self._graph is None:
+            self._graph = cycle_graph(self.cycle)
+        found = shortest_path(self._graph, directed=False, unweighted=True, indices=sources)
+        found[~np.isfinite(found)] = UNREACHABLE
+        return found.astype(np.int32).reshape(len(sources), self.cycle.n)
