@@ -7,7 +7,6 @@ say the mission completed, and the recording must pass ``mstc report``'s invaria
 
 from __future__ import annotations
 
-import contextlib
 import os
 import shutil
 import signal
@@ -32,6 +31,7 @@ from deploy.chaos.trial import (
     up_argv,
 )
 from deploy.cli import build_parser
+from deploy.fleet import ProcessRecord, is_running, start_ticks
 from planner.maps import BUILTIN_WORLDS, resolve_world
 
 
@@ -200,29 +200,21 @@ def test_a_killed_campaign_leaves_no_busy_process_spinning() -> None:
     campaign = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
                                 text=True)
     assert campaign.stdout is not None
-    hogs = [int(pid) for pid in campaign.stdout.readline().split()]
+    hogs = [ProcessRecord(f"busy-{pid}", "busy", int(pid), start_ticks(int(pid)))
+            for pid in campaign.stdout.readline().split()]
     try:
-        assert len(hogs) == 2 and all(_running(pid) for pid in hogs)
+        assert len(hogs) == 2 and all(is_running(hog) for hog in hogs)
         campaign.kill()
         campaign.wait(10)
         deadline = time.monotonic() + 10.0
-        while any(_running(pid) for pid in hogs) and time.monotonic() < deadline:
+        while any(is_running(hog) for hog in hogs) and time.monotonic() < deadline:
             time.sleep(0.05)
-        assert not any(_running(pid) for pid in hogs), "a busy process outlived the campaign"
+        assert not any(is_running(hog) for hog in hogs), "a busy process outlived the campaign"
     finally:
         campaign.kill()
-        for pid in hogs:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, signal.SIGKILL)
-
-
-def _running(pid: int) -> bool:
-    """Whether ``pid`` is a live process (a zombie nobody has reaped yet is not)."""
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (OSError, IndexError):
-        return False
-    return state not in ("Z", "X")
+        for hog in hogs:
+            if is_running(hog):
+                os.kill(hog.pid, signal.SIGKILL)
 
 
 def test_a_robot_cut_off_past_the_lease_is_no_false_suspicion(tmp_path: Path) -> None:

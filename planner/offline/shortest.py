@@ -165,8 +165,8 @@ class Grid:
     def rows(self, sources: Sequence[int]) -> dict[int, IntArray]:
         """Moves from each source to every place, as rows in cycle-index space (int32,
         UNREACHABLE where no walk leads): scipy's breadth-first searches, many sources per
-        call, the last MAX_ROWS rows kept. For many distances from a few sources (the
-        re-plan's refinement); scipy is imported only when this is first called."""
+        call, the last MAX_ROWS rows kept (rows of the table on small maps). For many
+        distances from a few sources (the re-plan's refinement)."""
         if self.cycle.n <= ALL_PAIRS_MAX:
             table = self._all_pairs()
             return {s: table[s % self.cycle.n] for s in dict.fromkeys(sources)}
