@@ -170,7 +170,12 @@ async def test_deletions_of_tokens_the_router_still_holds_are_refuted(
     peer's token locally while the router holds them all (a starved agent once declared
     nine live robots dead so). The watcher hears two such deletions, fed as its own link
     would feed them: the census of the router's tokens refutes them, nobody is declared
-    dead. A real SIGKILL afterwards is still declared at once, by its token."""
+    dead. A real SIGKILL afterwards is still declared at once, by its token.
+
+    Zenoh 1.10 now and then ends the census's liveliness get before the router's replies are
+    in, and a reply arriving after that reaches the watch as a second put of the token
+    (2 of 30 runs of this test on a loaded host, 2026-12-06): such a put refutes the
+    deletion too, and such a census proves nothing (bus.detector.CENSUSES_TO_CONFIRM)."""
     service, deaths = watcher
     # On a loaded host the watcher's own loop may run half a lease late, and then it rightly
     # doubts every token deletion for a while (the stall rule), and starved robots miss
@@ -178,11 +183,13 @@ async def test_deletions_of_tokens_the_router_still_holds_are_refuted(
     service.lease = 60.0
     service.detector.timeout = 30.0
     tokens_heard: set[str] = set()
+    heard_again: set[str] = set()  # puts after the fed deletions
+    fed = False
     on_token = service._on_token
 
     def recording(key: str, present: bool) -> None:
         if present:
-            tokens_heard.add(key)
+            (heard_again if fed else tokens_heard).add(key)
         on_token(key, present)
 
     service._on_token = recording  # type: ignore[method-assign]
@@ -199,16 +206,19 @@ async def test_deletions_of_tokens_the_router_still_holds_are_refuted(
         wanted = {keys.alive(mission, robot, 1) for robot in (5, 6)}
         await until(lambda: wanted <= tokens_heard, timeout=3.0)
         await asyncio.sleep(0.5)
+        fed = True
         for robot in (5, 6):
             service._on_token(keys.alive(mission, robot, 1), False)
-        await until(lambda: service.refuted_deletions == 2, timeout=5.0)
+        await until(lambda: not service.detector.unconfirmed_token_losses(), timeout=5.0)
+        refuted = service.refuted_deletions
+        assert refuted + len(heard_again) >= 2 and refuted >= 1, (refuted, heard_again)
         await asyncio.sleep(0.5)  # five token graces
         assert deaths == [] and set(service.detector.alive()) == {5, 6}
         procs[0].send_signal(signal.SIGKILL)
         await until(lambda: deaths, timeout=3.0)
         # by its token (confirmed by a census), not by the heartbeat timeout
         assert [(d.robot, d.reason) for d in deaths] == [(5, "token")]
-        assert service.refuted_deletions == 2
+        assert service.refuted_deletions == refuted
     finally:
         for proc in procs:
             reap(proc)
