@@ -1,13 +1,18 @@
 """Figures for docs/protocol.md: codec cost, latency and throughput through the bridge,
-and failure-detection latency after SIGKILL. Starts its own ``mstc router`` on a free port.
+failure-detection latency after SIGKILL, and how often a census (a liveliness get, the
+detector's check of a token deletion) comes back short, from a session that watches the
+tokens and from one that does not, on a quiet host and beside one busy process per core
+(the short answers come with load). Starts its own ``mstc router`` on a free port.
 
-    .venv/bin/python benchmarks/bench_bus.py [--trials 10]
+    .venv/bin/python benchmarks/bench_bus.py [--trials 10] [--gets 1000]
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import collections
+import os
 import signal
 import socket
 import statistics
@@ -23,6 +28,7 @@ from bus.config import ConnectionSettings
 from bus.liveness import LivelinessService
 from bus.messages import DeathNotice, Heartbeat, Progress
 from bus.router import start_router_process, stop_process
+from deploy.chaos.inject import busy_processes
 
 ROBOT = """
 import asyncio, sys
@@ -81,7 +87,7 @@ async def bench_latency_throughput(endpoint: str) -> None:
         await asyncio.sleep(0.3)
         n = 20000
         start = time.perf_counter()
-        msg = Progress(1, 1, 0, (0, 0), 0.0)
+        msg = Progress(2, 1, 0, (0, 0), 0.0)  # its key's robot: decoding checks the two agree
         for _ in range(n):
             tx.publish(keys.progress("bench", 2), msg)
         got = 0
@@ -122,9 +128,50 @@ async def bench_detection(endpoint: str, trials: int) -> None:
           f"{statistics.median(latencies) * 1000:.0f} ms, max {max(latencies) * 1000:.0f} ms")
 
 
+async def bench_census(endpoint: str, gets: int, load: str) -> None:
+    """Two robots hold their tokens; a session asks for every token ``gets`` times, 20 ms
+    apart, and counts the answers that lack any of the three (its own included)."""
+    mission = "census"
+    holders = [subprocess.Popen([sys.executable, "-c", ROBOT, endpoint, mission, str(robot)],
+                                stdout=subprocess.PIPE, text=True) for robot in (1, 2)]
+    try:
+        for proc in holders:
+            assert proc.stdout is not None
+            proc.stdout.readline()
+        for watching in (True, False):
+            settings = ConnectionSettings(connect=(endpoint,), mission=mission)
+            async with Bus.connect(settings) as bus:
+                bus.declare_token(keys.alive(mission, 0, 1))
+                if watching:
+                    bus.watch_liveliness(keys.all_alive(mission), lambda key: None,
+                                         lambda key: None)
+                await asyncio.sleep(1.0)
+                sizes: collections.Counter[int | None] = collections.Counter()
+                loop = asyncio.get_running_loop()
+                for _ in range(gets):
+                    answer: asyncio.Future[frozenset[str] | None] = loop.create_future()
+                    bus.ask_tokens(keys.all_alive(mission), 1.0, answer.set_result)
+                    tokens = await answer
+                    sizes[None if tokens is None else len(tokens)] += 1
+                    await asyncio.sleep(0.02)
+            short = gets - sizes[3]
+            how = ", ".join(f"{n} with {'no answer' if size is None else f'{size} tokens'}"
+                            for size, n in sizes.items() if size != 3)
+            print(f"census of 3 tokens, {gets} gets, {load}, session "
+                  f"{'watching' if watching else 'not watching'} the tokens: {short} short"
+                  + (f" ({how})" if how else ""))
+    finally:
+        for proc in holders:
+            proc.kill()
+            proc.wait()
+            assert proc.stdout is not None
+            proc.stdout.close()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--trials", type=int, default=10)
+    parser.add_argument("--gets", type=int, default=1000, help="liveliness gets per census run")
     args = parser.parse_args()
     bench_codec()
     endpoint = f"tcp/127.0.0.1:{free_port()}"
@@ -132,6 +179,14 @@ def main() -> None:
     try:
         asyncio.run(bench_latency_throughput(endpoint))
         asyncio.run(bench_detection(endpoint, args.trials))
+        asyncio.run(bench_census(endpoint, args.gets, "quiet host"))
+        busy = busy_processes(len(os.sched_getaffinity(0)))
+        try:
+            asyncio.run(bench_census(endpoint, args.gets, "one busy process per core"))
+        finally:
+            for proc in busy:
+                proc.kill()
+                proc.wait()
     finally:
         stop_process(router)
 

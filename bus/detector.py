@@ -28,10 +28,11 @@ DEFAULT_TIMEOUT = 1.0
 # A vanished liveliness token is confirmed after this grace, which also sets how often the
 # liveness service wakes (every min(heartbeat period, grace) / 2).
 DEFAULT_TOKEN_GRACE = 0.1
-# A token deletion counts once this many censuses in a row lack the token. Zenoh 1.10 ends
-# about one liveliness get in a hundred before all of the router's replies are in, when the
-# session also watches those tokens (9 of 1 000 gets, 0 of 2 000 without the watch,
-# 2026-12-06): one census alone once confirmed two live robots' deletions in CI.
+# A token deletion counts once this many censuses in a row lack the token. On a loaded host
+# Zenoh 1.10 ends up to one liveliness get in a hundred before all of the router's replies
+# are in, when the session also watches those tokens (benchmarks/bench_bus.py: 4-10 of
+# 1 000, none without the watch, 2026-12-06): one census alone once confirmed two live
+# robots' deletions in CI.
 CENSUSES_TO_CONFIRM = 2
 
 
