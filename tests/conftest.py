@@ -34,13 +34,15 @@ def pytest_configure(config: pytest.Config) -> None:
         compileall.compile_dir(root / package, quiet=1)
 
 
-def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
     """``-n auto`` starts three workers for two cores. The integration tests wait on real
     time (missions at time scale 1, leases, timeouts) as much as they compute: with one
     worker per core the suite kept the cores busy 67 % of its run, and a third worker took
-    the full suite from 616 s to 529 s on 2 cores (docs/testing.md). The tests hold under
-    the extra load by design (each was run beside busy loops). ``PYTEST_XDIST_AUTO_NUM_WORKERS``
-    still overrides it."""
+    the full suite from 616 s to 523-529 s on 2 cores (docs/testing.md). The tests hold
+    under the extra load by design (each was run beside busy loops). A number in
+    ``PYTEST_XDIST_AUTO_NUM_WORKERS`` still decides (xdist's own hook reads it)."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None
     cores = len(os.sched_getaffinity(0))
     return max(2, cores * 3 // 2)
 
