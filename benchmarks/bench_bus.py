@@ -142,9 +142,8 @@ async def bench_census(endpoint: str, gets: int, load: str) -> None:
             settings = ConnectionSettings(connect=(endpoint,), mission=mission)
             async with Bus.connect(settings) as bus:
                 bus.declare_token(keys.alive(mission, 0, 1))
-                if watching:
-                    bus.watch_liveliness(keys.all_alive(mission), lambda key: None,
-                                         lambda key: None)
+                watch = bus.watch_liveliness(keys.all_alive(mission), lambda key: None,
+                                             lambda key: None) if watching else None
                 await asyncio.sleep(1.0)
                 sizes: collections.Counter[int | None] = collections.Counter()
                 loop = asyncio.get_running_loop()
@@ -154,6 +153,8 @@ async def bench_census(endpoint: str, gets: int, load: str) -> None:
                     tokens = await answer
                     sizes[None if tokens is None else len(tokens)] += 1
                     await asyncio.sleep(0.02)
+                if watch is not None:
+                    watch.close()
             short = gets - sizes[3]
             how = ", ".join(f"{n} with {'no answer' if size is None else f'{size} tokens'}"
                             for size, n in sizes.items() if size != 3)

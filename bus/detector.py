@@ -47,6 +47,11 @@ class _Peer:
     def token_loss_confirmed(self) -> bool:
         return self.censuses_without_token >= CENSUSES_TO_CONFIRM
 
+    def token_held(self) -> None:
+        """No token loss pending: its censuses start afresh with the next deletion."""
+        self.token_lost_at = None
+        self.censuses_without_token = 0
+
 
 class FailureDetector:
     """Decides deaths from heartbeats, token deletions and others' death notices.
@@ -99,8 +104,7 @@ class FailureDetector:
         accepted = self._touch(robot, incarnation, now)
         peer = self._peers.get(robot)
         if accepted and peer is not None and peer.incarnation == incarnation:
-            peer.token_lost_at = None
-            peer.censuses_without_token = 0
+            peer.token_held()
         return accepted
 
     def on_token_deleted(self, robot: int, incarnation: int, now: float) -> None:
@@ -135,8 +139,7 @@ class FailureDetector:
             if peer.token_lost_at is None or peer.token_lost_at > asked_at:
                 continue
             if (robot, peer.incarnation) in present:
-                peer.token_lost_at = None
-                peer.censuses_without_token = 0
+                peer.token_held()
                 peer.last_seen = max(peer.last_seen, now)
                 refuted.append(robot)
             else:
@@ -191,10 +194,10 @@ class FailureDetector:
         if connected and not self._connected:
             for peer in self._peers.values():
                 peer.last_seen = max(peer.last_seen, now)
-                peer.token_lost_at = None
+                peer.token_held()
         if not connected:
             for peer in self._peers.values():
-                peer.token_lost_at = None
+                peer.token_held()
         self._connected = connected
 
     def on_local_stall(self, now: float) -> None:
@@ -212,7 +215,7 @@ class FailureDetector:
         (A woken robot that took them for deaths declared its whole fleet dead: chaos seed
         4249, trial 23.)"""
         for peer in self._peers.values():
-            peer.token_lost_at = None
+            peer.token_held()
         self._tokens_doubtful_until = max(self._tokens_doubtful_until, until)
 
     # --- outputs --------------------------------------------------------------------------
