@@ -34,6 +34,21 @@ def pytest_configure(config: pytest.Config) -> None:
         compileall.compile_dir(root / package, quiet=1)
 
 
+@pytest.hookimpl(wrapper=True)
+def pytest_collection(session: pytest.Session) -> object:
+    """Keep pytest's rewritten test modules (``tests/__pycache__/*-pytest-*.pyc``) even where
+    PYTHONDONTWRITEBYTECODE is set. pytest honours that variable by rewriting every test
+    module's asserts from source at each run, in each xdist worker: about 10 s of CPU a
+    worker, a sixth of the quick loop's CPU on 2 cores (docs/testing.md). Only the
+    collection writes them; the variable holds again for everything the tests import."""
+    saved = sys.dont_write_bytecode
+    sys.dont_write_bytecode = False
+    try:
+        return (yield)
+    finally:
+        sys.dont_write_bytecode = saved
+
+
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
     """``-n auto`` starts three workers for two cores. The integration tests wait on real
     time (missions at time scale 1, leases, timeouts) as much as they compute: with one
