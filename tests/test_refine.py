@@ -11,7 +11,7 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-from planner.offline.refine import refined
+from planner.offline.refine import _cuts, refined
 from planner.offline.shortest import Grid
 from planner.types import Cycle
 
@@ -79,13 +79,20 @@ def test_a_list_walked_back_and_forth_is_put_in_order() -> None:
     assert oracle.cost(0, better) <= 45  # 39 at best
 
 
-@pytest.mark.parametrize("seed", range(12))
-def test_every_place_stays_in_one_list_and_the_last_finishes_no_later(seed: int) -> None:
+def test_a_stretch_walked_backwards_is_turned_round_where_it_is() -> None:
+    grid = corridor(40)
+    work = [1, 2, 3, *range(10, 3, -1), *range(11, 21)]  # 3 -> 10 down to 4 -> 11
+    (better, far) = refined(grid, [0, 39], [work, []], moves=1)
+    assert (better, far) == (list(range(1, 21)), [])  # the one move that makes it 20
+
+
+def random_lists(seed: int, shape: tuple[int, int]) -> tuple[Grid, list[int], list[list[int]]]:
+    """2-5 survivors' positions and work lists: random places of the largest 4-connected
+    part of a random map (every place reachable from every other), in random order."""
     rng = np.random.default_rng(seed)
-    free = rng.random((14, 18)) > 0.25
+    free = rng.random(shape) > 0.25
     grid = grid_of(free)
     index = grid.cycle.index
-    # the largest 4-connected part: every place reachable from every other
     parts = np.full(free.shape, -1)
     part = 0
     for r, c in np.argwhere(free):
@@ -107,8 +114,14 @@ def test_every_place_stays_in_one_list_and_the_last_finishes_no_later(seed: int)
     k = int(rng.integers(2, 6))
     positions, rest = places[:k], places[k:len(places) * 2 // 3]
     cuts = sorted(rng.choice(np.arange(1, len(rest)), size=k - 1, replace=False).tolist())
-    works = [list(w) for w in np.split(np.asarray(rest), cuts)]
-    works = [[int(i) for i in w] for w in works]
+    works = [[int(i) for i in w] for w in np.split(np.asarray(rest), cuts)]
+    return grid, positions, works
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_every_place_stays_in_one_list_and_the_last_finishes_no_later(seed: int) -> None:
+    grid, positions, works = random_lists(seed, (14, 18))
+    rest = [i for w in works for i in w]
     oracle = Oracle(grid)
     before = max(oracle.cost(p, w) for p, w in zip(positions, works, strict=True))
     after_works = refined(grid, positions, works, moves=12)  # random lists: many moves help
@@ -117,3 +130,48 @@ def test_every_place_stays_in_one_list_and_the_last_finishes_no_later(seed: int)
     assert after <= before
     assert after < before or after_works == works  # a move is made only when it helps
     assert refined(grid, positions, works, moves=12) == after_works  # the same inputs, result
+
+
+def best_move_by_enumeration(oracle: Oracle, positions: list[int], works: list[list[int]]
+                             ) -> list[list[int]]:
+    """The refinement's one move as its docstring states it, by trying every one and
+    costing the lists it leaves with the tests' own breadth-first moves: a stretch of the
+    last survivor's list between two of its cuts (``_cuts``), put in either direction into
+    any slot of another survivor's list or of its own; the move whose later finish of the
+    two, then the total of all lists, is least, first in the order stretches, directions,
+    the others' slots (by survivor, then place) before its own; only if that finish is
+    below the last survivor's."""
+    costs = [oracle.cost(p, w) for p, w in zip(positions, works, strict=True)]
+    donor = max(range(len(works)), key=lambda r: (costs[r], -r))
+    work = works[donor]
+    steps = np.array([oracle.moves(a, b) for a, b in pairwise([positions[donor], *work])])
+    cuts = _cuts(steps)
+    best: tuple[tuple[int, int], list[list[int]]] | None = None
+    for x, i in enumerate(cuts[:-1]):
+        for j in cuts[x + 1:]:
+            rest = work[:i] + work[j:]
+            for stretch in (work[i:j], work[i:j][::-1]):
+                for taker in [r for r in range(len(works)) if r != donor] + [donor]:
+                    target = rest if taker == donor else works[taker]
+                    left = oracle.cost(positions[donor], rest)
+                    for at in range(len(target) + 1):
+                        taken = target[:at] + stretch + target[at:]
+                        grown = oracle.cost(positions[taker], taken)
+                        if taker == donor:
+                            key = (grown, sum(costs) - costs[donor] + grown)
+                        else:
+                            key = (max(left, grown),
+                                   sum(costs) - costs[donor] - costs[taker] + left + grown)
+                        if key[0] < costs[donor] and (best is None or key < best[0]):
+                            trial = [list(w) for w in works]
+                            trial[donor] = rest
+                            trial[taker] = taken
+                            best = (key, trial)
+    return works if best is None else best[1]
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_the_move_made_is_the_best_one_by_enumeration(seed: int) -> None:
+    grid, positions, works = random_lists(100 + seed, (6, 8))
+    assert refined(grid, positions, works, moves=1) == best_move_by_enumeration(
+        Oracle(grid), positions, works)

@@ -28,12 +28,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.offline.shortest import Grid
-from planner.types import IntArray
+from planner.types import BoolArray, IntArray
 
 MAX_MOVES = 64
 STRETCHES = 12  # a list is cut evenly into about this many stretches, and at its gaps
 MAX_CUTS = 24  # cut places per list at most (the widest gaps kept first)
 _CLIP = (1 << 31) - 1  # above any cost but one through a place no walk reaches
+_BLOCK = 1 << 16  # slots weighed in one array step (stretches x slots): 512 kB, in cache
 
 
 def refined(grid: Grid, positions: Sequence[int], works: Sequence[Sequence[int]], *,
@@ -127,64 +128,138 @@ def _cuts(steps: IntArray) -> list[int]:
     return sorted(cuts)
 
 
-def _move_one(lists: _Lists, donor: int) -> bool:
-    """Make the best move of a stretch of ``donor``'s list; False if none helps."""
+@dataclass(frozen=True)
+class _Stretches:
+    """The stretches ``work[i:j]`` of a donor's list that shorten it when taken out, in
+    the order of the pairs of cuts, and the rows of distances from their ends."""
+
+    first: IntArray  # i
+    last: IntArray  # j
+    inside: IntArray  # moves along the stretch
+    has_next: IntArray  # 1 if a place follows the stretch (j < len(work))
+    junction: IntArray  # moves from the place before it to the place after it
+    left: IntArray  # the donor's cost without it
+    table: IntArray  # rows of distances, from the places the row_* columns name
+    row_first: IntArray  # row of work[i]
+    row_last: IntArray  # row of work[j - 1]
+
+
+def _stretches(lists: _Lists, donor: int) -> _Stretches | None:
     work = lists.works[donor]
-    if not work:
-        return False
-    others = _others(lists, donor)
-    top = lists.costs[donor]
+    n, top = len(work), lists.costs[donor]
     steps = lists.steps[donor]
     inner = np.concatenate([[0], np.cumsum(steps)])  # inner[j] - inner[i + 1]: along i..j-1
     places = lists.places(donor)  # places[t] comes before work[t]
-    rest_total = sum(lists.costs) - top
-    best: tuple[tuple[int, int], int, int, int, int, bool] | None = None
     cuts = _cuts(steps)
     maps = lists.grid.rows([work[t] for t in cuts[:-1]] + [work[t - 1] for t in cuts[1:]])
-    for x, i in enumerate(cuts[:-1]):
-        for j in cuts[x + 1:]:
-            inside = int(inner[j] - inner[i + 1])  # moves along the stretch work[i:j]
-            if j < len(work):
-                junction = int(maps[work[j]][places[i]])  # from the place before i
-                left = top - int(steps[i]) - inside - int(steps[j]) + junction
-                rest_steps = np.concatenate([steps[:i], [junction], steps[j + 1:]])
-            else:
-                left = top - int(steps[i]) - inside
-                rest_steps = steps[:i]
-            if left >= top:
+    row_of = {place: r for r, place in enumerate(maps)}
+    table = np.stack(list(maps.values()))
+    pairs = np.array([(i, j) for x, i in enumerate(cuts[:-1]) for j in cuts[x + 1:]],
+                     dtype=np.int64)
+    first, last = pairs[:, 0], pairs[:, 1]
+    inside = inner[last] - inner[first + 1]
+    has_next = (last < n).astype(np.int64)
+    following = np.minimum(last, n - 1)
+
+    def rows(at: IntArray) -> IntArray:
+        return np.array([row_of[work[int(t)]] for t in at], dtype=np.int64)
+
+    junction = has_next * table[rows(following), places[first]]
+    left = top - steps[first] - inside + has_next * (junction - steps[following])
+    keep = left < top
+    if not keep.any():
+        return None
+    return _Stretches(first[keep], last[keep], inside[keep], has_next[keep], junction[keep],
+                      left[keep], table, rows(first[keep]), rows(last[keep] - 1))
+
+
+def _move_one(lists: _Lists, donor: int) -> bool:
+    """Make the best move of a stretch of ``donor``'s list; False if none helps.
+
+    Every stretch, both directions and every slot are weighed in whole-array steps, a
+    block of stretches at a time. The move made is the one a loop over the stretches,
+    then the directions, then the other lists' slots before the donor's own would keep
+    first: the least (later finish, total), the first on a tie."""
+    work = lists.works[donor]
+    if not work:
+        return False
+    found = _stretches(lists, donor)
+    if found is None:
+        return False
+    n = len(work)
+    top = lists.costs[donor]
+    steps = lists.steps[donor]
+    places = lists.places(donor)
+    table = found.table
+    others = _others(lists, donor)
+    rest_total = sum(lists.costs) - top
+    # The donor's own slots: every place t of its list (the stretch's are masked per pair).
+    own_after = np.concatenate([places[1:], places[-1:]])
+    own_has_after = np.concatenate([np.ones(n, dtype=np.int64), [0]])
+    own_bridge = np.concatenate([steps, [0]])
+    t = np.arange(n + 1, dtype=np.int64)
+    width = max(n + 1, 0 if others is None else len(others.before))
+    block = max(1, _BLOCK // width)
+    best: tuple[int, int, int, int] | None = None  # (later, total, stretch, candidate)
+    move: tuple[int, int, bool] = (0, 0, False)  # (taker, slot, backwards) of the best
+    for lo in range(0, len(found.first), block):
+        part = slice(lo, lo + block)
+        ii, jj, ins, lft = found.first[part], found.last[part], found.inside[part], found.left[part]
+        candidates = []
+        for entry, exit_, backwards in ((found.row_first[part], found.row_last[part], False),
+                                        (found.row_last[part], found.row_first[part], True)):
+            into, out = entry[:, None], exit_[:, None]
+            if others is not None:
+                grown = (others.cost + table[into, others.before] + ins[:, None]
+                         + others.has_after * (table[out, others.after] - others.bridge))
+                later = np.maximum(grown, lft[:, None])
+                totals = grown + lft[:, None] + (rest_total - others.cost)
+                at = _argmin(later, totals)
+                candidates.append((later, totals, at, others.robot[at], others.index[at],
+                                   backwards))
+            grown = (lft[:, None] + table[into, places] + ins[:, None]
+                     + own_has_after * (table[out, own_after] - own_bridge))
+            # the slot after place i: before the stretch's next place, or the list's end
+            grown[np.arange(len(ii)), ii] = (
+                lft + table[entry, places[ii]] + ins
+                + found.has_next[part]
+                * (table[exit_, places[np.minimum(jj + 1, n)]] - found.junction[part]))
+            totals = grown + rest_total
+            at = _argmin(grown, totals, (t > ii[:, None]) & (t <= jj[:, None]))
+            candidates.append((grown, totals, at, np.full(len(ii), donor),
+                               np.where(at <= ii, at, at - (jj - ii)), backwards))
+        for c, (later, totals, at, takers, indices, backwards) in enumerate(candidates):
+            rows = np.arange(len(ii))
+            key_later, key_total = later[rows, at], totals[rows, at]
+            helps = key_later < top
+            if not helps.any():
                 continue
-            own = _slots_of(donor, np.concatenate([places[:i + 1], places[j + 1:]]),
-                            rest_steps, left)
-            for entry, exit_, backwards in ((work[i], work[j - 1], False),
-                                            (work[j - 1], work[i], True)):
-                into_map, out_map = maps[entry], maps[exit_]
-                for slots in (others, own):
-                    if slots is None:
-                        continue
-                    grown = (slots.cost + into_map[slots.before] + inside
-                             + slots.has_after * (out_map[slots.after] - slots.bridge))
-                    if slots is own:  # the donor's own list: only its cost changes
-                        later = grown
-                        totals = grown + rest_total
-                    else:
-                        later = np.maximum(grown, left)
-                        totals = grown + left + rest_total - slots.cost
-                    # one argmin over (later, total), both clipped below 2^31
-                    at = int(np.argmin(np.minimum(later, _CLIP) * (_CLIP + 1)
-                                       + np.minimum(totals, _CLIP)))
-                    key = (int(later[at]), int(totals[at]))
-                    if key[0] < top and (best is None or key < best[0]):
-                        best = (key, i, j, int(slots.robot[at]), int(slots.index[at]),
-                                backwards)
+            least = key_later == key_later[helps].min()
+            least &= key_total == key_total[least].min()
+            p = int(np.argmax(least))  # the first stretch of this kind with the least key
+            key = (int(key_later[p]), int(key_total[p]), lo + p, c)
+            if best is None or key < best:
+                best = key
+                move = (int(takers[p]), int(indices[p]), backwards)
     if best is None:
         return False
-    _, i, j, taker, at, backwards = best
+    i, j = int(found.first[best[2]]), int(found.last[best[2]])
+    taker, slot, backwards = move
     stretch = work[i:j][::-1] if backwards else work[i:j]
     rest = work[:i] + work[j:]
     if taker == donor:
-        lists.replace(donor, rest[:at] + stretch + rest[at:])
+        lists.replace(donor, rest[:slot] + stretch + rest[slot:])
     else:
         lists.replace(donor, rest)
         target = lists.works[taker]
-        lists.replace(taker, target[:at] + stretch + target[at:])
+        lists.replace(taker, target[:slot] + stretch + target[slot:])
     return True
+
+
+def _argmin(later: IntArray, totals: IntArray, masked: BoolArray | None = None) -> IntArray:
+    """Per row, the first slot with the least (later, total), both clipped below 2^31;
+    never a ``masked`` one (a row's own stretch)."""
+    key = np.minimum(later, _CLIP) * (_CLIP + 1) + np.minimum(totals, _CLIP)
+    if masked is not None:
+        key[masked] = np.iinfo(np.int64).max
+    return np.argmin(key, axis=1)
