@@ -49,6 +49,7 @@ def test_many_robots_get_a_valid_plan_never_worse_than_opt(size: int, k: int,
     assert kept.makespan == min(plan.makespan, make_plan(area, tree, "opt").makespan)
 
 
+@pytest.mark.slow  # 3-4 s of CPU alone (the quick loop stays near a minute)
 def test_many_robot_plans_are_the_same_for_the_same_seed() -> None:
     grid = city_grid(96, 4)
     area = work_area(grid, random_starts(grid, 80, 4))

@@ -38,6 +38,7 @@ def _assigned(area: WorkArea, seed: int, goal: int) -> PartitionState | None:
     return None if found is None else found[0]
 
 
+@pytest.mark.slow  # 3-4 s of CPU alone (the quick loop stays near a minute)
 def test_farthest_point_seeds_unstall_rooms_whose_starts_are_spread(
         monkeypatch: pytest.MonkeyPatch) -> None:
     # 20 robots on a 40 x 40-cell floor plan: every start is at least SPACING cells from

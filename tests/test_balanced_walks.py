@@ -219,6 +219,7 @@ def test_walks_searched_to_a_limit_give_the_full_tables_assignment(
     assert walks.limit is None or walks.limit >= limit
 
 
+@pytest.mark.slow  # 3-4 s of CPU alone (the quick loop stays near a minute)
 def test_crowded_corner_is_planned_by_assignment() -> None:
     # k = 30, seed 5 of the issue: ten robots start in the top-left corner and the regions
     # grown from the starts stall far over the bound (docs/balanced.md); regions from spread

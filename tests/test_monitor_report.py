@@ -168,6 +168,7 @@ def test_balanced_walk_outs_may_cross_other_regions_and_nothing_else() -> None:
     assert statuses(report)[name] == "failed"
 
 
+@pytest.mark.slow  # 3-4 s of CPU alone (the quick loop stays near a minute)
 def test_a_split_of_the_cycle_is_held_to_the_walk_out_promise() -> None:
     # a perfect maze with robots at random: the registry's balanced planner keeps the split
     # of the cycle (planner.balanced.cyclesplit); every robot walks to its stretch first

@@ -71,6 +71,7 @@ def test_several_deaths_at_random_times_are_all_recovered(algo: str, seed: int) 
         assert len(result.walks[result.robots.index(robot)]) - 1 <= at
 
 
+@pytest.mark.slow  # 3-4 s of CPU alone (the quick loop stays near a minute)
 def test_two_deaths_in_one_step_and_one_during_the_recovery() -> None:
     grid = resolve_world("office")
     area = work_area(grid, random_starts(grid, 6, 1))
