@@ -52,23 +52,36 @@ def mission() -> str:
 
 
 @pytest.fixture
-async def watcher(router: str, mission: str
+def watch_timeout() -> float:
+    """The watcher's heartbeat timeout: short, so a hung robot is declared quickly."""
+    return 0.6
+
+
+@pytest.fixture
+async def watcher(router: str, mission: str, watch_timeout: float
                   ) -> AsyncIterator[tuple[LivelinessService, list[DeathNotice]]]:
     deaths: list[DeathNotice] = []
     async with Bus.connect(ConnectionSettings(connect=(router,), mission=mission)) as bus:
         service = LivelinessService(bus, robot=0, incarnation=1, heartbeat_period=0.1,
-                                    timeout=0.6, on_death=deaths.append)
+                                    timeout=watch_timeout, on_death=deaths.append)
         async with asyncio.TaskGroup() as group:
             task = group.create_task(service.run())
             yield service, deaths
             task.cancel()
 
 
-def start_robot(router: str, mission: str, robot: int, *, lease_ms: int = 1000,
-                timeout: float = 0.6) -> subprocess.Popen[str]:
+async def start_robot(router: str, mission: str, robot: int, *, lease_ms: int = 1000,
+                      timeout: float = 0.6) -> subprocess.Popen[str]:
+    """A robot process, once it says it is ready. Its readiness is awaited in a thread: a
+    blocking read here stalled the watcher's loop while the process started (0.5 s and
+    more in a loaded CI run), and a loop that stalls half a lease doubts the token deletions
+    heard next (bus.liveness, LEASE_STALL_FRACTION), so a SIGKILL soon after was declared
+    by heartbeat instead of by token."""
     proc = subprocess.Popen([sys.executable, "-c", ROBOT, router, mission, str(robot),
                              str(lease_ms), str(timeout)], stdout=subprocess.PIPE, text=True)
-    assert proc.stdout is not None and proc.stdout.readline().strip() == "ready"
+    assert proc.stdout is not None
+    line = await asyncio.wait_for(asyncio.to_thread(proc.stdout.readline), 30.0)
+    assert line.strip() == "ready"
     return proc
 
 
@@ -86,15 +99,19 @@ async def until(predicate: object, timeout: float) -> None:
             await asyncio.sleep(0.01)
 
 
+# The heartbeat path is the hung robot's test; this one gives the token path (two censuses
+# after the deletion, bus.detector.CENSUSES_TO_CONFIRM: 110-170 ms here) all the time it
+# needs under load, with no heartbeat timeout to race it.
+@pytest.mark.parametrize("watch_timeout", [5.0])
 async def test_sigkill_is_detected_by_token(watcher: tuple[LivelinessService, list[DeathNotice]],
                                             router: str, mission: str) -> None:
     _bus, deaths = watcher
-    proc = start_robot(router, mission, 3)
+    proc = await start_robot(router, mission, 3)
     try:
         await asyncio.sleep(0.5)  # let heartbeats and the token reach the watcher
         proc.send_signal(signal.SIGKILL)
         killed = time.monotonic()
-        await until(lambda: deaths, timeout=3.0)
+        await until(lambda: deaths, timeout=4.0)  # under the heartbeat timeout
         latency = time.monotonic() - killed
         assert [(d.robot, d.incarnation, d.reason) for d in deaths] == [(3, 1, "token")]
         print(f"SIGKILL -> death notice in {latency * 1000:.0f} ms")
@@ -105,7 +122,7 @@ async def test_sigkill_is_detected_by_token(watcher: tuple[LivelinessService, li
 async def test_hung_robot_is_declared_dead_and_fenced_when_it_wakes(
         watcher: tuple[LivelinessService, list[DeathNotice]], router: str, mission: str) -> None:
     service, deaths = watcher
-    proc = start_robot(router, mission, 4)
+    proc = await start_robot(router, mission, 4)
     try:
         await asyncio.sleep(0.5)
         proc.send_signal(signal.SIGSTOP)
@@ -198,7 +215,7 @@ async def test_deletions_of_tokens_the_router_still_holds_are_refuted(
     # failure, 2026-12-05, one of the two deletions left unrefuted): the robots keep their
     # sessions and peers for a minute here. A SIGKILL closes the link at once whatever the
     # lease.
-    procs = [start_robot(router, mission, robot, lease_ms=60_000, timeout=30.0)
+    procs = [await start_robot(router, mission, robot, lease_ms=60_000, timeout=30.0)
              for robot in (5, 6)]
     try:
         # Both tokens heard first, and heard again if they come twice (history and live put
