@@ -38,9 +38,9 @@ def pytest_configure(config: pytest.Config) -> None:
 def pytest_collection(session: pytest.Session) -> object:
     """Keep pytest's rewritten test modules (``tests/__pycache__/*-pytest-*.pyc``) even where
     PYTHONDONTWRITEBYTECODE is set. pytest honours that variable by rewriting every test
-    module's asserts from source at each run, in each xdist worker: about 10 s of CPU a
-    worker, a sixth of the quick loop's CPU on 2 cores (docs/testing.md). Only the
-    collection writes them; the variable holds again for everything the tests import."""
+    module's asserts from source at each run, in each xdist worker: a collection took
+    7.1-7.6 s with the rewriting and 3.4 s without (docs/testing.md). Only the collection
+    writes bytecode; the variable holds again for everything the tests import later."""
     saved = sys.dont_write_bytecode
     sys.dont_write_bytecode = False
     try:

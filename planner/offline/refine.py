@@ -139,7 +139,7 @@ class _Stretches:
     has_next: IntArray  # 1 if a place follows the stretch (j < len(work))
     junction: IntArray  # moves from the place before it to the place after it
     left: IntArray  # the donor's cost without it
-    table: IntArray  # rows of distances, from the places the row_* columns name
+    table: IntArray  # distances from a few places to every place, a row per place
     row_first: IntArray  # row of work[i]
     row_last: IntArray  # row of work[j - 1]
 
