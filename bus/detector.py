@@ -233,20 +233,23 @@ class FailureDetector:
         for peer in holding:
             peer.last_seen = max(peer.last_seen, now - self.timeout / 2)
 
-    def expire(self, now: float) -> list[DeathNotice]:
+    def expire(self, now: float, *, tokens_only: bool = False) -> list[DeathNotice]:
         """Declare dead every life whose token is gone (after the grace) or whose last sign
         of life is older than the timeout; each death is reported once. A silence of every
-        peer at once is not a sign of death (_forgive_a_common_silence)."""
+        peer at once is not a sign of death (_forgive_a_common_silence). With
+        ``tokens_only`` silences are left alone: a caller that has not checked for a stall
+        of its own (:meth:`on_local_stall`) cannot tell a peer's silence from its own."""
         if not self._connected:
             return []
-        self._forgive_a_common_silence(now)
+        if not tokens_only:
+            self._forgive_a_common_silence(now)
         notices = []
         for robot, peer in sorted(self._peers.items()):
             reason: DeathReason | None = None
             if peer.token_lost_at is not None and now - peer.token_lost_at >= self.token_grace \
                     and (peer.token_loss_confirmed or not self.confirm_tokens):
                 reason = "token"
-            elif now - peer.last_seen > self.timeout:
+            elif not tokens_only and now - peer.last_seen > self.timeout:
                 reason = "heartbeat"
             if reason is not None:
                 notices.append(DeathNotice(robot, peer.incarnation, self.detector, reason, now))

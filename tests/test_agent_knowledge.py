@@ -32,6 +32,9 @@ class FakeBus:
         # the tokens the router answers a census with: tests put the agent's own there (no
         # peer's: every deletion it heard is real); empty, an answer proves nothing
         self.tokens_held: set[str] = set()
+        # a census is answered at once, or, with answer_at_once False, when answer() says
+        self.answer_at_once = True
+        self.questions: list[Callable[[frozenset[str] | None], None]] = []
 
     def connected(self) -> bool:
         return True
@@ -41,7 +44,14 @@ class FakeBus:
 
     def ask_tokens(self, key: str, timeout: float,
                    on_answer: Callable[[frozenset[str] | None], None]) -> None:
-        on_answer(frozenset(self.tokens_held))
+        if self.answer_at_once:
+            on_answer(frozenset(self.tokens_held))
+        else:
+            self.questions.append(on_answer)
+
+    def answer(self) -> None:
+        """The router's answer to the oldest question."""
+        self.questions.pop(0)(frozenset(self.tokens_held))
 
 
 class Clock:
@@ -284,10 +294,41 @@ def test_a_census_without_this_robots_own_token_proves_no_death() -> None:
         clock.now = now
         assert service.tick() == []  # every census came back empty: nothing proved
     bus.tokens_held = {keys.alive("t", 3, 1)}
+    bus.answer_at_once = False
     clock.now = 0.45
-    assert service.tick() == []  # one census lacking the token could be one cut short
-    clock.now = 0.5
-    assert [(n.robot, n.reason) for n in service.tick()] == [(1, "token")]
+    assert service.tick() == [] and len(bus.questions) == 1
+    clock.now = 0.47
+    bus.answer()  # one census lacking the token could be one cut short
+    assert heard == [] and len(bus.questions) == 1  # the second is asked at once
+    clock.now = 0.49
+    bus.answer()  # the second lacks it too: the death is declared on the answer, no tick
+    assert [(n.robot, n.reason) for n in heard] == [(1, "token")] and bus.questions == []
+    assert [(n.robot, n.reason) for n in service.tick()] == [(1, "token")]  # reported once
+    assert service.tick() == [] and len(heard) == 1
+
+
+def test_a_census_answer_declares_no_silence() -> None:
+    """A census answer may be handled before the tick that would see this loop's own stall:
+    it declares token deaths only, and a peer that merely looks silent is left to the tick
+    (which forgives a stall of its own)."""
+    bus, clock = FakeBus(), Clock()
+    bus.tokens_held = {keys.alive("t", 3, 1)}
+    bus.answer_at_once = False
+    heard: list[DeathNotice] = []
+    service = LivelinessService(cast(Any, bus), 3, 1, timeout=1.0, token_grace=0.1,
+                                clock=clock, on_death=heard.append)
+    service.tick()
+    service._on_heartbeat("mstc/t/hb/2", Heartbeat(2, 1, 0, None, "covering", 0.0))
+    service._on_token(keys.alive("t", 1, 1), True)
+    service._on_token(keys.alive("t", 1, 1), False)
+    clock.now = 0.05
+    assert service.tick() == [] and len(bus.questions) == 1
+    clock.now = 5.0  # this loop was stalled: robot 2 looks silent for 5 s
+    bus.answer()
+    bus.answer()
+    assert [(n.robot, n.reason) for n in heard] == [(1, "token")]  # robot 2 is not
+    assert service.tick() == [(heard[0])]  # the tick sees the stall and forgives robot 2
+    assert len(heard) == 1
 
 
 async def test_a_robot_that_cannot_move_says_why_and_what_it_knows(
