@@ -211,10 +211,11 @@ class LivelinessService:
 
     def _ask_census(self, now: float) -> None:
         """Ask the router which tokens it holds; the answer confirms or refutes the token
-        deletions heard so far (FailureDetector.on_token_census). One question at a time;
-        an answer that proves nothing (no one reached, a timeout, or this robot's own token
-        missing from it) is asked again at the next tick, and heartbeats still decide
-        meanwhile."""
+        deletions heard so far (FailureDetector.on_token_census). One question at a time,
+        first asked at a tick; an answer that leaves a deletion unconfirmed asks again at
+        once (:meth:`_on_census`). An answer that proves nothing (no one reached, a timeout,
+        or this robot's own token missing from it) is asked again at the next tick, and
+        heartbeats still decide meanwhile."""
         self._census_asked_at = now
         self.bus.ask_tokens(keys.all_alive(self.bus.mission),
                             max(CENSUS_TIMEOUT, self.detector.token_grace),
