@@ -327,7 +327,7 @@ def test_a_census_answer_declares_no_silence() -> None:
     bus.answer()
     bus.answer()
     assert [(n.robot, n.reason) for n in heard] == [(1, "token")]  # robot 2 is not
-    assert service.tick() == [(heard[0])]  # the tick sees the stall and forgives robot 2
+    assert service.tick() == [heard[0]]  # the tick sees the stall and forgives robot 2
     assert len(heard) == 1
 
 
