@@ -44,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _campaign(args: argparse.Namespace) -> object:
-    from deploy.chaos.inject import partition_problem
+    from deploy.chaos.partition import partition_problem
     from deploy.chaos.schedule import SCENARIOS, Campaign
     from planner.errors import PlannerError
     from planner.maps import resolve_world

@@ -7,7 +7,9 @@ say the mission completed, and the recording must pass ``mstc report``'s invaria
 
 from __future__ import annotations
 
+import asyncio
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -19,7 +21,8 @@ import pytest
 
 from agent.core.config import DEFAULT_BOOT_TIMEOUT
 from deploy.chaos.campaign import not_injected, rerun_command, table
-from deploy.chaos.inject import partition_problem
+from deploy.chaos.inject import Injector, RouterProcess
+from deploy.chaos.partition import partition_problem, tcp_ports
 from deploy.chaos.schedule import SCENARIOS, Campaign, Fault, Trial, make_trial
 from deploy.chaos.trial import (
     TRIAL_TIMEOUT_S,
@@ -403,6 +406,107 @@ async def test_a_partitioned_robot_heals_and_the_mission_completes(tmp_path: Pat
     assert outcome.complete, outcome.detail
     assert any("ports [" in line and "ports []" not in line for line in outcome.injected), \
         outcome.injected
+
+
+# A robot's session to the router, as an agent holds one (bus.config: its lease, its
+# reconnection pace), until killed.
+_CLIENT = """
+import sys, time
+time.sleep(float(sys.argv[2]))
+from bus.config import ConnectionSettings, open_session
+with open_session(ConnectionSettings(connect=(sys.argv[1],))):
+    print("connected", flush=True)
+    time.sleep(600)
+"""
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+async def test_a_partition_outlasts_the_lease_and_heals(tmp_path: Path, free_port: int) -> None:
+    """The client gives up the cut link after its lease and connects again from a new
+    port; the cut refuses that too, so no new connection exists while it lasts (a new one
+    came 1.2 s into the cut before), and one comes soon after the heal."""
+    problem = partition_problem()
+    if problem is not None:
+        pytest.skip(problem)
+    endpoint = f"tcp/127.0.0.1:{free_port}"
+    router = RouterProcess(endpoint, tmp_path / "router.log")
+    await router.start()
+    client = subprocess.Popen([sys.executable, "-c", _CLIENT, endpoint, "0"],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert client.stdout is not None
+        assert await asyncio.to_thread(client.stdout.readline) == "connected\n"
+        pids = tmp_path / "run" / "pids"
+        pids.mkdir(parents=True)
+        (pids / "agent-1.pid").write_text(f"{client.pid} 0\n")
+        first = tcp_ports(client.pid, free_port)
+        assert first
+        injector = Injector(router, tmp_path / "run")
+        seen: list[tuple[float, list[int]]] = []
+        loop = asyncio.get_running_loop()
+        cut_at = loop.time()
+
+        async def watch() -> None:
+            while loop.time() - cut_at < 7.0:
+                seen.append((loop.time() - cut_at, tcp_ports(client.pid, free_port)))
+                await asyncio.sleep(0.05)
+
+        async with asyncio.TaskGroup() as group:
+            group.create_task(injector.apply(Fault("partition", 0.0, 1, 3.0)))
+            group.create_task(watch())
+        assert injector.done == [f"partition robot 1 at 0.0 s for 3.0 s: ports {first}"]
+        during = [ports for t, ports in seen if 1.5 <= t <= 2.9]
+        assert during and all(set(ports) <= set(first) for ports in during), seen
+        later = [ports for t, ports in seen if t >= 3.1 and set(ports) - set(first)]
+        assert later, f"no new connection after the heal: {seen[-5:]}"
+        assert not [line for line in _rules() if "mstc-partition-" in line]
+    finally:
+        client.kill()
+        client.wait()
+        router.kill()
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+async def test_a_partition_of_a_booting_robot_waits_for_its_connection(
+        tmp_path: Path, free_port: int) -> None:
+    """A robot with no connection yet is cut once it has one, and the record says how long
+    that took; one that ends without ever connecting is recorded as not cut (counted among
+    the late faults), never as cut (it was: "ports []")."""
+    problem = partition_problem()
+    if problem is not None:
+        pytest.skip(problem)
+    endpoint = f"tcp/127.0.0.1:{free_port}"
+    router = RouterProcess(endpoint, tmp_path / "router.log")
+    await router.start()
+    pids = tmp_path / "run" / "pids"
+    pids.mkdir(parents=True)
+    booting = subprocess.Popen([sys.executable, "-c", _CLIENT, endpoint, "1.0"],
+                               stdout=subprocess.DEVNULL)
+    never = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(0.5)"])
+    try:
+        (pids / "agent-1.pid").write_text(f"{booting.pid} 0\n")
+        (pids / "agent-2.pid").write_text(f"{never.pid} 0\n")
+        injector = Injector(router, tmp_path / "run")
+        async with asyncio.TaskGroup() as group:
+            group.create_task(injector.apply(Fault("partition", 0.0, 1, 0.5)))
+            group.create_task(injector.apply(Fault("partition", 0.0, 2, 0.5)))
+        cut, missed = sorted(injector.done)
+        assert re.fullmatch(r"partition robot 1 at 0\.0 s for 0\.5 s: ports \[\d+\], "
+                            r"after [1-9]\.\d s waiting for its connection", cut), cut
+        assert missed == ("partition robot 2 at 0.0 s for 0.5 s: not carried out: robot 2 "
+                          "had no connection to the router")
+    finally:
+        for process in (booting, never):
+            process.kill()
+            process.wait()
+        router.kill()
+
+
+def _rules() -> list[str]:
+    return subprocess.run(["iptables", "-S"], capture_output=True, text=True,
+                          check=True).stdout.splitlines()
 
 
 @pytest.mark.integration

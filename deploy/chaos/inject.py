@@ -1,13 +1,14 @@
 """Process and network faults on a running fleet, from outside, by PID: SIGKILL, hangs
 (SIGSTOP/SIGCONT of any length), router kill/restart and freeze, partitions of one robot
-from its router (iptables DROP of its TCP connections on loopback, healed after), and CPU
+from its router (deploy.chaos.partition: its connections dropped and its reconnections
+refused on loopback, healed after), and CPU
 starvation: of one robot (stopped for all but ``share`` of every 100 ms, a process the
 scheduler hardly runs) or of the host (one busy process per core beside the fleet).
 
 The router is the injector's own child (``mstc chaos`` starts it and runs ``mstc up
 --connect``), so a restart brings the same router back on the same port. A partition needs
-iptables and the right to use it: :func:`partition_problem` says why not, and campaigns and
-tests skip partitions with that reason.
+iptables and the right to use it: ``deploy.chaos.partition.partition_problem`` says why
+not, and campaigns and tests skip partitions with that reason.
 """
 
 from __future__ import annotations
@@ -15,19 +16,15 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
-import shutil
 import signal
 import subprocess
 import sys
 from pathlib import Path
 
 from bus.router import READY_MARK
+from deploy.chaos.partition import Cut, InjectionError, tcp_ports
 from deploy.chaos.schedule import Fault
 from deploy.fleet import ended_with_launcher, mstc_argv
-
-
-class InjectionError(RuntimeError):
-    """A fault could not be carried out (the trial would run without it unseen)."""
 
 
 class RouterProcess:
@@ -74,67 +71,8 @@ class RouterProcess:
                 self.proc.wait(5.0)
 
 
-def partition_problem() -> str | None:
-    """Why partitions cannot be made here, or None."""
-    if shutil.which("iptables") is None:
-        return "iptables is not installed (apt-get install -y iptables)"
-    probe = subprocess.run(["iptables", "-S", "INPUT"], capture_output=True, text=True,
-                           check=False)
-    if probe.returncode != 0:
-        return f"iptables cannot be used: {probe.stderr.strip() or probe.returncode}"
-    return None
-
-
-def tcp_ports(pid: int, remote_port: int) -> list[int]:
-    """Local ports of process ``pid``'s TCP connections to ``remote_port`` (loopback)."""
-    inodes: set[str] = set()
-    with contextlib.suppress(OSError):
-        for fd in Path(f"/proc/{pid}/fd").iterdir():
-            with contextlib.suppress(OSError):
-                target = os.readlink(fd)
-                if target.startswith("socket:["):
-                    inodes.add(target[8:-1])
-    ports = []
-    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
-        with contextlib.suppress(OSError):
-            for line in Path(table).read_text().splitlines()[1:]:
-                fields = line.split()
-                local, remote, inode = fields[1], fields[2], fields[9]
-                if inode in inodes and int(remote.rsplit(":", 1)[1], 16) == remote_port:
-                    ports.append(int(local.rsplit(":", 1)[1], 16))
-    return sorted(set(ports))
-
-
-def _rule(action: str, direction: str, port: int) -> subprocess.CompletedProcess[str]:
-    # -w: trials running side by side take the xtables lock in turn instead of failing.
-    return subprocess.run(["iptables", "-w", "5", action, "INPUT", "-i", "lo", "-p", "tcp",
-                           direction, str(port), "-j", "DROP"],
-                          capture_output=True, text=True, check=False)
-
-
-def _iptables(action: str, port: int) -> None:
-    """Insert (-I) or delete (-D) the two DROP rules of one local port on lo."""
-    done: list[str] = []
-    for direction in ("--sport", "--dport"):
-        result = _rule(action, direction, port)
-        if result.returncode != 0:
-            if action == "-I":  # no half partition left behind
-                for undo in done:
-                    _rule("-D", undo, port)
-            raise InjectionError(f"iptables {action} port {port}: "
-                                 f"{result.stderr.strip() or result.returncode}")
-        done.append(direction)
-
-
-def _heal(ports: list[int]) -> str:
-    """Delete the rules of ``ports``; what could not be deleted, as a note for the record."""
-    failed = []
-    for port in ports:
-        try:
-            _iptables("-D", port)
-        except InjectionError as error:
-            failed.append(str(error))
-    return f"; heal failed: {'; '.join(failed)}" if failed else ""
+# How long a partition waits for a booting robot's first connection to the router.
+CONNECTION_WAIT_S = 30.0
 
 
 class Injector:
@@ -180,21 +118,44 @@ class Injector:
         elif fault.kind == "starve":
             await _throttle(pid, fault.seconds, fault.share)
         elif fault.kind == "partition":
-            ports = tcp_ports(pid, self.router.port)
-            cut: list[int] = []
-            try:
-                for port in ports:
-                    _iptables("-I", port)
-                    cut.append(port)
-                await asyncio.sleep(fault.seconds)
-            except InjectionError as error:
-                self.done.append(f"{fault.describe()}: not carried out: {error}")
-                return
-            finally:
-                healed = _heal(cut)
-            self.done.append(f"{fault.describe()}: ports {ports}{healed}")
+            await self._partition(fault, pid)
             return
         self.done.append(fault.describe())
+
+    async def _partition(self, fault: Fault, pid: int) -> None:
+        """Cut robot ``fault.robot`` off for ``fault.seconds`` (deploy.chaos.partition). A
+        robot still booting has no connection to cut yet: it is waited for, as a kill waits
+        for its process, and the record says how long."""
+        loop = asyncio.get_running_loop()
+        asked = loop.time()
+        ports = tcp_ports(pid, self.router.port)
+        while not ports and Path(f"/proc/{pid}").exists() \
+                and loop.time() - asked < CONNECTION_WAIT_S:
+            await asyncio.sleep(0.02)
+            ports = tcp_ports(pid, self.router.port)
+        if not ports:
+            self.done.append(f"{fault.describe()}: not carried out: robot {fault.robot} had "
+                             "no connection to the router")
+            return
+        waited = loop.time() - asked
+        cut = Cut(pid, self.router.port)
+        failure: InjectionError | None = None
+        try:
+            cut.make(ports)
+            await asyncio.sleep(fault.seconds)
+        except InjectionError as error:
+            failure = error
+        finally:
+            healed = cut.heal()
+        if failure is not None:
+            self.done.append(f"{fault.describe()}: not carried out: {failure}{healed}")
+            return
+        notes = [f"ports {ports}"]
+        if waited >= 0.05:
+            notes.append(f"after {waited:.1f} s waiting for its connection")
+        if cut.reconnects_blocked:
+            notes.append(f"reconnections not blocked: {cut.reconnects_blocked}")
+        self.done.append(f"{fault.describe()}: {', '.join(notes)}{healed}")
 
     async def _marked(self, robot: int, mark: str, timeout: float = 60.0) -> bool:
         """Wait until robot ``robot``'s log shows ``mark``; False if it never does."""
