@@ -86,6 +86,11 @@ def test_a_late_death_is_ordered_from_mstc_up_at_a_share_of_the_coverage(
                     "body-fail robot 1 at 70 % coverage: not carried out (the mission ended "
                     "first)"]
     assert ordered_deaths(trial, "")[0].endswith("not carried out (mstc up does not say it was)")
+    # done with every sub-cell covered (seed 6021, trial 13): no death was survived
+    after = ordered_deaths(trial, "[   2.0s] SIGKILL agent 2 at 45.5 %: done (coverage 100.0 %)")
+    assert after[0] == ("kill robot 2 at 45.5 % coverage: done (coverage 100.0 %); too late: "
+                       "the mission was complete")
+    assert not_injected(Outcome(trial, "ok", "", 1.0, injected=after[:1]))
     assert not_injected(Outcome(trial, "ok", "", 1.0, injected=said))
     assert not not_injected(Outcome(trial, "ok", "", 1.0, injected=said[:1]))
 

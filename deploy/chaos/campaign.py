@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TextIO
 
 from deploy.chaos.schedule import Campaign, Fault, Trial, make_trial
-from deploy.chaos.trial import Outcome, classify_deaths, run_trial
+from deploy.chaos.trial import TOO_LATE, Outcome, classify_deaths, run_trial
 
 VERDICTS = ("ok", "lost", "gap", "double")
 
@@ -100,9 +100,10 @@ def closing_lines(campaign: Campaign, outcomes: list[Outcome], out: Path) -> lis
 
 
 def not_injected(outcome: Outcome) -> bool:
-    """A fault fell after the mission's end (its target was gone): the trial ran without it."""
+    """A fault fell after the mission's end (its target was gone, or every sub-cell was
+    covered): the trial ran without it."""
     return any(mark in line for line in outcome.injected
-               for mark in ("no such process", "never came", "not carried out"))
+               for mark in ("no such process", "never came", "not carried out", TOO_LATE))
 
 
 def table(outcomes: list[Outcome]) -> str:

@@ -205,6 +205,9 @@ def judge(trial: Trial, workdir: Path, code: int | None, wall: float,
     return outcome
 
 
+TOO_LATE = "too late: the mission was complete"
+
+
 def ordered_deaths(trial: Trial, up_log: str) -> list[str]:
     """What ``mstc up`` says of the deaths it was told to order (Fault.by_coverage): done
     (with the coverage it was done at) or not carried out, in the campaign's words."""
@@ -217,7 +220,10 @@ def ordered_deaths(trial: Trial, up_log: str) -> list[str]:
         lines = up_log.splitlines()
         done = next((line for line in lines if f"{order}: done" in line), None)
         if done is not None:
-            out.append(f"{fault.describe()}: done{done.split(': done', 1)[1]}")
+            said = f"{fault.describe()}: done{done.split(': done', 1)[1]}"
+            # Done with every sub-cell covered (a body failure waits for simhw's answer,
+            # and a short mission goes on meanwhile): no death was survived.
+            out.append(said + (f"; {TOO_LATE}" if "(coverage 100.0 %)" in done else ""))
         elif any(line.strip().startswith(NOT_CARRIED_OUT) and order in line for line in lines):
             out.append(f"{fault.describe()}: not carried out (the mission ended first)")
         else:
