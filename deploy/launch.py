@@ -34,7 +34,7 @@ from deploy.errors import FleetError
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv, niced
 from deploy.progress import ProgressView, make_progress
 from deploy.security import FleetSecurity
-from deploy.settings import NOT_CARRIED_OUT, MissionSetup, UpSettings
+from deploy.settings import MISSION_COVERED, NOT_CARRIED_OUT, MissionSetup, UpSettings
 from deploy.summary import MissionTracker, format_summary, summarize
 from deploy.supervisor import KillSchedule, Supervisor
 from planner.offline.rebalance import DEFAULT_RECOVERY
@@ -285,7 +285,7 @@ class Launcher:
             if t.complete:
                 if complete_at is None:
                     complete_at = now
-                    self.view.event(f"[{now - self.t0:6.1f}s] every reachable sub-cell covered")
+                    self.view.event(f"[{now - self.t0:6.1f}s] {MISSION_COVERED}")
                 if self._all_settled() or now - complete_at > s.linger:
                     return Outcome(0, "every reachable free sub-cell was covered")
             elif all(c.returncode is not None for c in self.agents):

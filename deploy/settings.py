@@ -114,6 +114,9 @@ _KILL_RE = re.compile(
 # How `mstc up` lists the kills a mission ended before (deploy/launch.py; read back by the
 # chaos campaign, deploy/chaos/trial.py).
 NOT_CARRIED_OUT = "not carried out (the mission ended first): "
+# What `mstc up` prints once every sub-cell is covered (read by the chaos injector, which
+# then carries out no more faults: deploy/chaos/inject.py).
+MISSION_COVERED = "every reachable sub-cell covered"
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from agent.core.config import DEFAULT_BOOT_TIMEOUT
 from deploy.chaos.campaign import not_injected, rerun_command, table
 from deploy.chaos.inject import Injector, RouterProcess
 from deploy.chaos.partition import partition_problem, tcp_ports
-from deploy.chaos.schedule import SCENARIOS, Campaign, Fault, Trial, make_trial
+from deploy.chaos.schedule import SCENARIOS, TOO_LATE, Campaign, Fault, Trial, make_trial
 from deploy.chaos.trial import (
     TRIAL_TIMEOUT_S,
     Outcome,
@@ -93,6 +93,31 @@ def test_a_late_death_is_ordered_from_mstc_up_at_a_share_of_the_coverage(
     assert not_injected(Outcome(trial, "ok", "", 1.0, injected=after[:1]))
     assert not_injected(Outcome(trial, "ok", "", 1.0, injected=said))
     assert not not_injected(Outcome(trial, "ok", "", 1.0, injected=said[:1]))
+
+
+async def test_no_fault_is_carried_out_once_the_mission_is_covered(tmp_path: Path) -> None:
+    """A robot lingers after the mission ends, so its process is there to kill: such a kill
+    tested nothing and was recorded as survived (seed 6023, trial 16). Once mstc up says every
+    sub-cell is covered, faults are recorded as too late (late faults) and not carried out."""
+    up_log = tmp_path / "up.log"
+    up_log.write_text("[   0.7s] mission started: all robots up\n")
+    (tmp_path / "run" / "pids").mkdir(parents=True)
+    lingering = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (tmp_path / "run" / "pids" / "agent-1.pid").write_text(f"{lingering.pid} 0\n")
+        injector = Injector(RouterProcess("tcp/127.0.0.1:1", tmp_path / "router.log"),
+                            tmp_path / "run", up_log)
+        up_log.write_text(up_log.read_text() + "[   3.1s] every reachable sub-cell covered\n")
+        await injector.apply(Fault("kill", 0.0, 1))
+        await injector.apply(Fault("router-freeze", 0.0, None, 0.5))
+        assert lingering.poll() is None, "the lingering robot was not killed"
+        assert injector.done == ["kill robot 1 at 0.0 s: too late: the mission was complete",
+                                 "router-freeze router at 0.0 s for 0.5 s: too late: the "
+                                 "mission was complete"]
+        assert not_injected(Outcome(_trial("nb", 3), "ok", "", 1.0, injected=injector.done))
+    finally:
+        lingering.kill()
+        lingering.wait()
 
 
 @pytest.mark.parametrize("world", sorted(BUILTIN_WORLDS))
@@ -310,8 +335,8 @@ async def _judged(trial: Trial, tmp_path: Path) -> Outcome:
     assert outcome.verdict == "ok", (outcome.detail, outcome.injected,
                                      (tmp_path / "trial" / "up.log").read_text()[-2000:])
     assert len(outcome.injected) == len(trial.faults), outcome.injected
-    assert not any("no such process" in f or "never came" in f for f in outcome.injected), \
-        outcome.injected
+    assert not any("no such process" in f or "never came" in f or TOO_LATE in f
+                   for f in outcome.injected), outcome.injected
     return outcome
 
 

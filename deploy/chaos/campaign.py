@@ -12,8 +12,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TextIO
 
-from deploy.chaos.schedule import Campaign, Fault, Trial, make_trial
-from deploy.chaos.trial import TOO_LATE, Outcome, classify_deaths, run_trial
+from deploy.chaos.schedule import TOO_LATE, Campaign, Fault, Trial, make_trial
+from deploy.chaos.trial import Outcome, classify_deaths, run_trial
 
 VERDICTS = ("ok", "lost", "gap", "double")
 

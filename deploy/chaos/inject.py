@@ -1,9 +1,9 @@
 """Process and network faults on a running fleet, from outside, by PID: SIGKILL, hangs
 (SIGSTOP/SIGCONT of any length), router kill/restart and freeze, partitions of one robot
 from its router (deploy.chaos.partition: its connections dropped and its reconnections
-refused on loopback, healed after), and CPU
-starvation: of one robot (stopped for all but ``share`` of every 100 ms, a process the
-scheduler hardly runs) or of the host (one busy process per core beside the fleet).
+refused on loopback, healed after), and CPU starvation: of one robot (stopped for all but
+``share`` of every 100 ms, a process the scheduler hardly runs) or of the host (one busy
+process per core beside the fleet).
 
 The router is the injector's own child (``mstc chaos`` starts it and runs ``mstc up
 --connect``), so a restart brings the same router back on the same port. A partition needs
@@ -23,8 +23,9 @@ from pathlib import Path
 
 from bus.router import READY_MARK
 from deploy.chaos.partition import Cut, InjectionError, tcp_ports
-from deploy.chaos.schedule import Fault
+from deploy.chaos.schedule import TOO_LATE, Fault
 from deploy.fleet import ended_with_launcher, mstc_argv
+from deploy.settings import MISSION_COVERED
 
 
 class RouterProcess:
@@ -78,10 +79,23 @@ CONNECTION_WAIT_S = 30.0
 class Injector:
     """Carries out a trial's faults against its router and its fleet's PIDs."""
 
-    def __init__(self, router: RouterProcess, run_dir: Path) -> None:
+    def __init__(self, router: RouterProcess, run_dir: Path, up_log: Path | None = None) -> None:
         self.router = router
         self.run_dir = run_dir
+        self.up_log = up_log  # mstc up's output: once it says the mission is covered, no fault
         self.done: list[str] = []  # what was carried out, for the trial's record
+
+    def _too_late(self, fault: Fault) -> bool:
+        """True (and recorded) once ``mstc up`` says every sub-cell is covered: a fault then
+        tests nothing, yet a lingering robot's process is still there to kill (seed 6023,
+        trial 16: a kill 0.6 s after the mission ended, recorded as survived)."""
+        if self.up_log is None:
+            return False
+        with contextlib.suppress(OSError):
+            if MISSION_COVERED in self.up_log.read_text(errors="replace"):
+                self.done.append(f"{fault.describe()}: {TOO_LATE}")
+                return True
+        return False
 
     def agent_pid(self, robot: int) -> int | None:
         path = self.run_dir / "pids" / f"agent-{robot}.pid"
@@ -91,7 +105,9 @@ class Injector:
 
     async def apply(self, fault: Fault) -> None:
         if fault.robot is None:
-            await (self._starve_host(fault) if fault.kind == "starve" else self._router(fault))
+            if not self._too_late(fault):
+                await (self._starve_host(fault) if fault.kind == "starve" else
+                       self._router(fault))
             return
         pid = self.agent_pid(fault.robot)
         if pid is None:
@@ -107,6 +123,8 @@ class Injector:
             self.done.append(f"{fault.describe()}: the mark never came")
             return
         await asyncio.sleep(fault.at if fault.mark else 0.0)
+        if self._too_late(fault):
+            return
         if fault.kind == "kill":
             _signal(pid, signal.SIGKILL)
         elif fault.kind == "hang":

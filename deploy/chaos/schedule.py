@@ -15,6 +15,10 @@ from typing import Any
 
 from planner.algorithms import Family, algorithm, names
 
+# How a trial records a fault that came once every sub-cell was covered: it tested nothing
+# (a campaign counts it among the late faults, deploy.chaos.campaign.not_injected).
+TOO_LATE = "too late: the mission was complete"
+
 # Every algorithm a grid fleet runs (the registry's; tree coverage has its own launcher).
 GRID_FLEET = tuple(n for n in names(fleet=True) if algorithm(n).family is not Family.TREE)
 # What a trial's schedule is made of; "mixed" combines a kill, a hang and message loss.

@@ -28,7 +28,7 @@ from typing import Any
 
 from bus.faults import ENV as FAULTS_ENV
 from deploy.chaos.inject import Injector, RouterProcess
-from deploy.chaos.schedule import Trial
+from deploy.chaos.schedule import TOO_LATE, Trial
 from deploy.fleet import ended_with_launcher, mstc_argv
 from deploy.settings import NOT_CARRIED_OUT, KillOrder
 from planner.maps import resolve_world
@@ -106,7 +106,7 @@ async def run_trial(trial: Trial, workdir: Path) -> Outcome:
     router = RouterProcess(f"tcp/127.0.0.1:{free_port()}", workdir / "router.log")
     began = time.monotonic()
     await router.start()
-    injector = Injector(router, run_dir)
+    injector = Injector(router, run_dir, workdir / "up.log")
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     env.pop(FAULTS_ENV, None)
     if trial.messages:
@@ -203,9 +203,6 @@ def judge(trial: Trial, workdir: Path, code: int | None, wall: float,
         outcome.verdict = "gap"
         outcome.detail = "; ".join(outcome.report_failures)
     return outcome
-
-
-TOO_LATE = "too late: the mission was complete"
 
 
 def ordered_deaths(trial: Trial, up_log: str) -> list[str]:
