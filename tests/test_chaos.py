@@ -450,18 +450,25 @@ with open_session(ConnectionSettings(connect=(sys.argv[1],))):
 """
 
 
+async def _router_for_cuts(endpoint: str, tmp_path: Path) -> RouterProcess:
+    """A router on ``endpoint``, started, for a partition test (skipped where iptables
+    cannot be used)."""
+    problem = partition_problem()
+    if problem is not None:
+        pytest.skip(problem)
+    router = RouterProcess(endpoint, tmp_path / "router.log")
+    await router.start()
+    return router
+
+
 @pytest.mark.integration
 @pytest.mark.slow
 async def test_a_partition_outlasts_the_lease_and_heals(tmp_path: Path, free_port: int) -> None:
     """The client gives up the cut link after its lease and connects again from a new
     port; the cut refuses that too, so no new connection exists while it lasts (a new one
     came 1.2 s into the cut before), and one comes soon after the heal."""
-    problem = partition_problem()
-    if problem is not None:
-        pytest.skip(problem)
     endpoint = f"tcp/127.0.0.1:{free_port}"
-    router = RouterProcess(endpoint, tmp_path / "router.log")
-    await router.start()
+    router = await _router_for_cuts(endpoint, tmp_path)
     client = subprocess.Popen([sys.executable, "-c", _CLIENT, endpoint, "0"],
                               stdout=subprocess.PIPE, text=True)
     try:
@@ -504,12 +511,8 @@ async def test_a_partition_of_a_booting_robot_waits_for_its_connection(
     """A robot with no connection yet is cut once it has one, and the record says how long
     that took; one that ends without ever connecting is recorded as not cut (counted among
     the late faults), never as cut (it was: "ports []")."""
-    problem = partition_problem()
-    if problem is not None:
-        pytest.skip(problem)
     endpoint = f"tcp/127.0.0.1:{free_port}"
-    router = RouterProcess(endpoint, tmp_path / "router.log")
-    await router.start()
+    router = await _router_for_cuts(endpoint, tmp_path)
     pids = tmp_path / "run" / "pids"
     pids.mkdir(parents=True)
     booting = subprocess.Popen([sys.executable, "-c", _CLIENT, endpoint, "1.0"],
