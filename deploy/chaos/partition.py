@@ -14,8 +14,9 @@ A cut has two parts:
   - A socket stays in the cgroup of the process that made it. The move therefore
     catches only sockets made afterwards; the old connection stays the port rules'.
   - It is refused with a TCP reset, not dropped. The client then retries at its own pace
-    (bus.config: at most a second apart). A dropped attempt would wait out the kernel's
-    SYN back-off, up to 7 s after the cut is healed.
+    (bus.config's ``connect/retry``: at most a second apart). A dropped attempt would be
+    retried by the kernel's SYN back-off instead (1 s, then 2 s, 4 s, ...), which could
+    keep the robot cut off for seconds after the heal.
 
 Where the cgroup part cannot be made (no cgroup v2 hierarchy, no ``cgroup`` match), the cut
 is its first part alone and the trial's record says so.
