@@ -110,7 +110,8 @@ async def test_no_fault_is_carried_out_once_the_mission_is_covered(tmp_path: Pat
         up_log.write_text(up_log.read_text() + "[   3.1s] every reachable sub-cell covered\n")
         await injector.apply(Fault("kill", 0.0, 1))
         await injector.apply(Fault("router-freeze", 0.0, None, 0.5))
-        assert lingering.poll() is None, "the lingering robot was not killed"
+        with pytest.raises(subprocess.TimeoutExpired):  # the lingering robot was not killed
+            lingering.wait(0.5)
         assert injector.done == ["kill robot 1 at 0.0 s: too late: the mission was complete",
                                  "router-freeze router at 0.0 s for 0.5 s: too late: the "
                                  "mission was complete"]
@@ -118,6 +119,37 @@ async def test_no_fault_is_carried_out_once_the_mission_is_covered(tmp_path: Pat
     finally:
         lingering.kill()
         lingering.wait()
+
+
+async def test_a_fault_on_an_ended_or_reused_pid_is_not_carried_out(tmp_path: Path) -> None:
+    """An agent's pid file outlives it until the fleet stops: a signal to its pid was lost
+    (or would hit whatever process has the pid now) and was recorded as done."""
+    (tmp_path / "run" / "pids").mkdir(parents=True)
+    ended = subprocess.Popen([sys.executable, "-c", "pass"])
+    ended.wait()
+    stranger = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        started = start_ticks(stranger.pid)
+        assert started is not None
+        pids = tmp_path / "run" / "pids"
+        (pids / "agent-1.pid").write_text(f"{ended.pid} 0\n")
+        # the stranger under a pid file of another process's start: a reused pid
+        (pids / "agent-2.pid").write_text(f"{stranger.pid} {started - 1}\n")
+        (pids / "agent-3.pid").write_text(f"{stranger.pid} {started}\n")
+        injector = Injector(RouterProcess("tcp/127.0.0.1:1", tmp_path / "router.log"),
+                            tmp_path / "run")
+        await injector.apply(Fault("kill", 0.0, 1))
+        await injector.apply(Fault("kill", 0.0, 2))
+        with pytest.raises(subprocess.TimeoutExpired):  # the process that has the pid now
+            stranger.wait(0.5)                          # was spared
+        await injector.apply(Fault("kill", 0.0, 3))
+        assert stranger.wait(5.0) == -signal.SIGKILL
+        assert injector.done == ["kill robot 1 at 0.0 s: no such process",
+                                 "kill robot 2 at 0.0 s: no such process",
+                                 "kill robot 3 at 0.0 s"]
+    finally:
+        stranger.kill()
+        stranger.wait()
 
 
 @pytest.mark.parametrize("world", sorted(BUILTIN_WORLDS))

@@ -24,7 +24,7 @@ from pathlib import Path
 from bus.router import READY_MARK
 from deploy.chaos.partition import Cut, InjectionError, tcp_ports
 from deploy.chaos.schedule import TOO_LATE, Fault
-from deploy.fleet import ended_with_launcher, mstc_argv
+from deploy.fleet import ProcessRecord, ended_with_launcher, is_running, mstc_argv
 from deploy.settings import MISSION_COVERED
 
 
@@ -97,10 +97,14 @@ class Injector:
                 return True
         return False
 
-    def agent_pid(self, robot: int) -> int | None:
+    def agent(self, robot: int) -> ProcessRecord | None:
+        """Robot ``robot``'s agent as its pid file names it (None before it is spawned).
+        The file outlives the process until the fleet stops: :meth:`apply` checks
+        ``is_running`` before it acts."""
         path = self.run_dir / "pids" / f"agent-{robot}.pid"
         with contextlib.suppress(OSError, ValueError, IndexError):
-            return int(path.read_text().split()[0])
+            pid, started = (int(word) for word in path.read_text().split()[:2])
+            return ProcessRecord(f"agent-{robot}", "agent", pid, started or None)
         return None
 
     async def apply(self, fault: Fault) -> None:
@@ -109,14 +113,14 @@ class Injector:
                 await (self._starve_host(fault) if fault.kind == "starve" else
                        self._router(fault))
             return
-        pid = self.agent_pid(fault.robot)
-        if pid is None:
+        agent = self.agent(fault.robot)
+        if agent is None:
             # Not spawned yet: a fault this early hits the robot as it boots.
             for _ in range(1500):  # mstc up spawns the agents once simhw is ready
                 await asyncio.sleep(0.02)
-                if (pid := self.agent_pid(fault.robot)) is not None:
+                if (agent := self.agent(fault.robot)) is not None:
                     break
-        if pid is None:
+        if agent is None:
             self.done.append(f"{fault.describe()}: no such process")
             return
         if fault.mark and not await self._marked(fault.robot, fault.mark):
@@ -125,6 +129,12 @@ class Injector:
         await asyncio.sleep(fault.at if fault.mark else 0.0)
         if self._too_late(fault):
             return
+        if not is_running(agent):
+            # ended (killed, fenced, left), or its pid since given to another process: a
+            # signal would be lost, or hit a stranger, and be recorded as done
+            self.done.append(f"{fault.describe()}: no such process")
+            return
+        pid = agent.pid
         if fault.kind == "kill":
             _signal(pid, signal.SIGKILL)
         elif fault.kind == "hang":
