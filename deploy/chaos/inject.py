@@ -146,19 +146,19 @@ class Injector:
         elif fault.kind == "starve":
             await _throttle(pid, fault.seconds, fault.share)
         elif fault.kind == "partition":
-            await self._partition(fault, pid)
+            await self._partition(fault, agent)
             return
         self.done.append(fault.describe())
 
-    async def _partition(self, fault: Fault, pid: int) -> None:
+    async def _partition(self, fault: Fault, agent: ProcessRecord) -> None:
         """Cut robot ``fault.robot`` off for ``fault.seconds`` (deploy.chaos.partition). A
         robot still booting has no connection to cut yet: it is waited for, as a kill waits
         for its process, and the record says how long."""
         loop = asyncio.get_running_loop()
         asked = loop.time()
+        pid = agent.pid
         ports = tcp_ports(pid, self.router.port)
-        while not ports and Path(f"/proc/{pid}").exists() \
-                and loop.time() - asked < CONNECTION_WAIT_S:
+        while not ports and is_running(agent) and loop.time() - asked < CONNECTION_WAIT_S:
             await asyncio.sleep(0.02)
             ports = tcp_ports(pid, self.router.port)
         if not ports:

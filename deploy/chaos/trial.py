@@ -18,6 +18,7 @@ import asyncio
 import contextlib
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -220,7 +221,8 @@ def ordered_deaths(trial: Trial, up_log: str) -> list[str]:
             said = f"{fault.describe()}: done{done.split(': done', 1)[1]}"
             # Done with every sub-cell covered (a body failure waits for simhw's answer,
             # and a short mission goes on meanwhile): no death was survived.
-            out.append(said + (f"; {TOO_LATE}" if "(coverage 100.0 %)" in done else ""))
+            at = re.search(r"\(coverage ([\d.]+) %\)", done)
+            out.append(said + (f"; {TOO_LATE}" if at and float(at[1]) >= 100.0 else ""))
         elif any(line.strip().startswith(NOT_CARRIED_OUT) and order in line for line in lines):
             out.append(f"{fault.describe()}: not carried out (the mission ended first)")
         else:
