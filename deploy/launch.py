@@ -30,11 +30,18 @@ from bus.messages import (
     WorldState,
 )
 from bus.router import READY_MARK as ROUTER_READY
+from deploy.armed import ArmedFailures, armable
 from deploy.errors import FleetError
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv, niced
 from deploy.progress import ProgressView, make_progress
 from deploy.security import FleetSecurity
-from deploy.settings import MISSION_COVERED, NOT_CARRIED_OUT, MissionSetup, UpSettings
+from deploy.settings import (
+    MISSION_COVERED,
+    NOT_CARRIED_OUT,
+    KillOrder,
+    MissionSetup,
+    UpSettings,
+)
 from deploy.summary import MissionTracker, format_summary, summarize
 from deploy.supervisor import KillSchedule, Supervisor
 from planner.offline.rebalance import DEFAULT_RECOVERY
@@ -65,6 +72,7 @@ class Launcher:
                  run_dir: RunDir, view: ProgressView) -> None:
         self.setup = setup
         self.kills = KillSchedule(settings.kills)
+        self.armed = ArmedFailures()  # body failures simhw carries out at a coverage
         self.endpoint = endpoint
         self.mission = settings.mission
         self.run_dir = run_dir
@@ -212,9 +220,10 @@ class Launcher:
     def _on_cover(self, event: CoverEvent) -> None:
         # At time scale 0 a mission lasts about a second: check percent kills per cover, not
         # per tick, so that "2@progress=40" lands near 40 %.
-        if self.tracker.on_cover(event, time.monotonic()) and \
-                self.kills.waits_on_coverage(self.tracker.coverage):
-            self.wake.set()
+        if self.tracker.on_cover(event, time.monotonic()):
+            self._fire_armed()
+            if self.kills.waits_on_coverage(self.tracker.coverage):
+                self.wake.set()
 
     def _on_death(self, _key: str, notice: DeathNotice) -> None:
         # every death is told, not only those of our own kill orders (`mstc kill` from
@@ -241,6 +250,7 @@ class Launcher:
                 self.tracker.on_world(reply.msg, time.monotonic())
             except ValueError as error:
                 raise FleetError(f"simhw's world does not match: {error}") from error
+            self._fire_armed()
 
     # --- supervision -----------------------------------------------------------------------
 
@@ -273,6 +283,7 @@ class Launcher:
                 started = now
                 t.last_progress = now
                 self.view.event(f"[{now - self.t0:6.1f}s] mission started: all robots up")
+                await self._arm_body_failures(bus)
             elif started is None and now - self.t0 > start_timeout:
                 missing = sorted(set(range(t.robots)) - t.heard)
                 return Outcome(1, f"agents not up after {start_timeout:.0f} s; robots not "
@@ -357,6 +368,37 @@ class Launcher:
             self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] {order.describe()}: done "
                             f"(coverage {self.tracker.coverage:.1f} %)")
 
+    async def _arm_body_failures(self, bus: Bus) -> None:
+        # deploy/armed.py says why simhw, not this loop, carries these out
+        for order in self.kills.take(armable):
+            armed = self.armed.arm(order, self.tracker.total)
+            replies = await bus.query(keys.hw_admin(self.mission), armed.command(),
+                                      AdminReply, timeout=2.0)
+            if not replies or not replies[0].msg.ok:
+                why = replies[0].msg.message if replies else "no answer from simhw"
+                self.view.event(f"cannot arm {order.describe()} in simhw ({why}); it is "
+                                f"sent when due instead")
+                self.armed.disarm(order.robot)
+                self.kills.pending.append(order)
+                continue
+            self.tracker.failing[order.robot] = "body failed by mstc up"
+        self._fire_armed()
+
+    def _fire_armed(self) -> None:
+        t = self.tracker
+        for armed in self.armed.fired(t.covered):
+            robot = armed.order.robot
+            self.killed_at[robot] = time.monotonic()
+            t.lose(robot, "body failed by mstc up")
+            # the coverage simhw failed it at: exactly its order's, not when we heard
+            self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] {armed.order.describe()}: "
+                            f"done (coverage {100.0 * armed.covered / t.total:.1f} %)")
+
+    @property
+    def unfired(self) -> list[KillOrder]:
+        """Kill orders the mission ended before."""
+        return [*self.kills.pending, *self.armed.unfired]
+
     async def _fail_body(self, bus: Bus, robot: int) -> None:
         replies = await bus.query(keys.hw_admin(self.mission), AdminCommand("fail", robot),
                                   AdminReply, timeout=2.0)
@@ -397,9 +439,9 @@ async def launch(setup: MissionSetup, settings: UpSettings, endpoint: str, t0: f
                                 outcome=outcome.message)
             view.close()
             print(format_summary(summary), flush=True)
-            if launcher.kills.pending:  # a clean run is no survived kill: say what never came
+            if launcher.unfired:  # a clean run is no survived kill: say what never came
                 print("  " + NOT_CARRIED_OUT + ", ".join(
-                    order.describe() for order in launcher.kills.pending), flush=True)
+                    order.describe() for order in launcher.unfired), flush=True)
             rd.write_summary(summary.to_json())
             if outcome.code == 0 and not summary.complete:
                 return 1

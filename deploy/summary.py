@@ -105,6 +105,8 @@ class MissionTracker:
     # (life, detector) of death notices not taken: their detector was declared dead first
     refused: set[tuple[tuple[int, int], int | None]] = field(default_factory=set)
     log: list[str] = field(default_factory=list)
+    # robot -> why its body will fail in simhw (a failure mstc up armed: deploy/armed.py)
+    failing: dict[int, str] = field(default_factory=dict)
     model: FleetModel = field(init=False)  # the figures' source, as in mstc monitor / report
 
     def __post_init__(self) -> None:
@@ -163,9 +165,10 @@ class MissionTracker:
                 view = self.views[truth.robot]
                 view.moves = max(0, truth.covered - 1)
                 if truth.failed and not view.lost:
-                    # only an operator's admin command fails a body: `mstc kill --hw`
-                    self.lose(truth.robot, "body failed in simhw by an operator "
-                                           "(mstc kill --hw)")
+                    # only an admin command fails a body: mstc up's armed failure, or an
+                    # operator's `mstc kill --hw`
+                    self.lose(truth.robot, self.failing.get(
+                        truth.robot, "body failed in simhw by an operator (mstc kill --hw)"))
         grew = self.covered > before
         if grew:
             self.last_progress = now

@@ -15,7 +15,7 @@ import asyncio
 import contextlib
 import os
 import signal
-from collections.abc import Awaitable, Iterator
+from collections.abc import Awaitable, Callable, Iterator
 from pathlib import Path
 from typing import TypeVar
 
@@ -58,6 +58,12 @@ class KillSchedule:
         ready = [o for o in self.pending if o.is_due(None, None, step)]
         first = min((o.step for o in ready if o.step is not None), default=None)
         taken = [o for o in ready if o.step == first]
+        self.pending = [o for o in self.pending if o not in taken]
+        return taken
+
+    def take(self, wanted: Callable[[KillOrder], bool]) -> list[KillOrder]:
+        """The orders ``wanted`` picks, removed from the schedule whatever their moment."""
+        taken = [o for o in self.pending if wanted(o)]
         self.pending = [o for o in self.pending if o not in taken]
         return taken
 

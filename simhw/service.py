@@ -10,6 +10,7 @@ status "rejected" and counted, never raised.
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -43,6 +44,7 @@ from simhw.world import World
 
 Publish = Callable[[str, object], None]
 NO_POSE = (-1, -1, 0)
+_log = logging.getLogger(__name__)
 
 
 class FirstVisitors:
@@ -108,6 +110,7 @@ class HwService:
         self._covers_sent = 0
         self.firsts = FirstVisitors(world.grid.free.shape)
         self._bumps_sent = 0
+        self._fired_seen = 0
         self.counts: Counter[str] = Counter()
         self.shutdown = asyncio.Event()
         # The bus's drop counter, when served over Zenoh: the bridge drops undecodable
@@ -259,11 +262,33 @@ class HwService:
             return AdminReply(ok=True, message="shutting down")
         if cmd.robot is None:
             raise CommandRejected(f"admin {cmd.action} needs a robot")
+        if cmd.after_covered is not None:
+            return self._arm_failure(cmd.robot, cmd.action, cmd.after_covered)
         {"fail": self.world.fail, "freeze": self.world.freeze,
          "unfreeze": self.world.unfreeze}[cmd.action](cmd.robot)
         return AdminReply(ok=True, message=f"robot {cmd.robot}: {cmd.action} done",
                           data={"robot": cmd.robot,
                                 "status": self.world.body(cmd.robot).status.value})
+
+    def _arm_failure(self, robot: int, action: str, covered: int) -> AdminReply:
+        if action != "fail":
+            raise CommandRejected(f"admin {action} cannot wait for coverage; only fail can")
+        if covered < 0:
+            raise CommandRejected(f"after_covered must be 0 or more, got {covered}")
+        now = self.world.arm_failure(robot, covered, self.clock.now())
+        self._report_fired()
+        return AdminReply(ok=True, message=f"robot {robot}: fail " + (
+            "done" if now else f"armed for {covered} covered sub-cells"),
+            data={"robot": robot, "status": self.world.body(robot).status.value,
+                  "covered": self.world.covered})
+
+    def _report_fired(self) -> None:
+        for robot, covered, at in self.world.fired[self._fired_seen:]:
+            _log.warning("robot %d's body failed as armed, at %d covered sub-cells (sim %.1f s)",
+                         robot, covered, at)
+        if len(self.world.fired) > self._fired_seen:
+            self._fired_seen = len(self.world.fired)
+            self._notify()  # a frozen body waiting in _until_not_frozen fails now
 
     def status(self) -> dict[str, int | float | str]:
         data: dict[str, int | float | str] = {
@@ -306,6 +331,7 @@ class HwService:
                                       sim_time=self.clock.lane_now(robot)))
 
     def _flush_ground_truth(self) -> None:
+        self._report_fired()
         for rec in self.world.cover_log[self._covers_sent:]:
             self._publish(keys.sim_cover(self.mission, rec.robot),
                           CoverEvent(robot=rec.robot, cell=rec.sub, sim_time=rec.time,

@@ -61,6 +61,11 @@ class World:
         self.visits: npt.NDArray[np.int64] = np.zeros(grid.shape, dtype=np.int64)
         self.cover_log: list[CoverRecord] = []
         self.bump_log: list[BumpRecord] = []
+        self.covered = 0  # sub-cells entered at least once
+        # robot -> the ``covered`` count at which its body fails (arm_failure), and the
+        # failures so fired, as (robot, covered, time)
+        self.armed: dict[int, int] = {}
+        self.fired: list[tuple[int, int, float]] = []
         taken: dict[SubCell, int] = {}
         for robot, pose in enumerate(poses):
             self._check_start(robot, pose, taken)
@@ -176,6 +181,28 @@ class World:
         b = self._get(robot)
         b.status = BodyStatus.FAILED
         b.target = None
+        self.armed.pop(robot, None)
+
+    def arm_failure(self, robot: int, covered: int, at: float) -> bool:
+        """Fail ``robot``'s body the moment ``covered`` sub-cells are covered (right after the
+        step that covers the last of them); at once if they already are. True if it failed now.
+
+        A failure ordered at a share of the coverage lands exactly there, however long the
+        order takes to arrive: at time scale 0 a whole mission can pass in that time.
+        """
+        b = self._get(robot)
+        if b.status is BodyStatus.FAILED:
+            raise BodyFailedError(f"robot {robot} has failed already")
+        if self.covered >= covered:
+            self._fire(robot, at)
+            return True
+        self.armed[robot] = covered
+        return False
+
+    def _fire(self, robot: int, at: float) -> None:
+        self.armed.pop(robot, None)
+        self.fail(robot)
+        self.fired.append((robot, self.covered, at))
 
     def vanish(self, robot: int) -> None:
         """The robot is dead: its body stops holding sub-cells (no bumps, no sonar echo)."""
@@ -232,3 +259,8 @@ class World:
         self.visits[sub] += 1
         self.cover_log.append(CoverRecord(robot=robot, sub=sub, time=at,
                                           visits=int(self.visits[sub])))
+        if self.visits[sub] == 1:
+            self.covered += 1
+            for armed, when in sorted(self.armed.items()):
+                if self.covered >= when:
+                    self._fire(armed, at)

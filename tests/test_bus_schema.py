@@ -85,7 +85,7 @@ EXAMPLES: dict[type[Any], Any] = {ex.__class__: ex for ex in (
               ("balanced: a note",), ""),
     HwCommand(11, 3, 2, "sense", ("front", "left")),
     HwReply(11, 3, "ok", "", (1, 2, 0), (0.5, 0.25), {"front": 3, "left": None}, False, 4.0),
-    AdminCommand("fail", 3),
+    AdminCommand("fail", 3, 40),
     AdminReply(True, "ok", {"n": 1}),
     GroundTruthPose(3, (1, 2, 1), 5.0),
     CoverEvent(3, (2, 2), 5.5, 2),

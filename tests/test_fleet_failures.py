@@ -18,6 +18,7 @@ import contextlib
 import itertools
 import json
 import random
+import re
 import signal
 import subprocess
 from collections.abc import AsyncIterator, Sequence
@@ -48,6 +49,7 @@ from agent.offline.plan import compute_plan
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import WorldState, world_visits
+from deploy.armed import covered_for
 from planner.algorithms import Family, algorithm
 from planner.maps import resolve_world
 from planner.offline.lockstep import TakeoverResult, simulate_failures
@@ -362,6 +364,13 @@ async def test_up_kill_hw_at_a_percentage_fails_a_robot_mid_section(
         stop_processes([proc])
     assert f"fail body of {victim} at 30 %: done" in output, output
     check_body_failure(heard, case, grid, victim, tmp_path / "run", code, output)
+    # simhw carried it out itself, right after the step that brought the coverage to 30 %
+    reachable = json.loads((tmp_path / "run" / "summary.json").read_text())["reachable"]
+    log = (tmp_path / "run" / "logs" / "simhw.log").read_text()
+    fired = re.search(rf"robot {victim}'s body failed as armed, at (\d+) covered", log)
+    assert fired is not None, log
+    assert int(fired[1]) == covered_for(30.0, reachable)
+    assert 100 * (int(fired[1]) - 1) / reachable < 30 <= 100 * int(fired[1]) / reachable
 
 
 @pytest.mark.slow

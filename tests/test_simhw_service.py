@@ -287,3 +287,30 @@ async def test_a_fenced_robots_verdicts_fence_nobody() -> None:
     assert (await svc.command(1, cmd(1, "pose", inc=2))).status == "ok"
     assert not svc.life_is_fenced(1)
     assert on_death(svc, DeathNotice(0, 1, 1, "token", 0.0), "vanish")
+
+
+async def test_admin_fail_after_covered_is_armed_and_fires_on_the_covering_step() -> None:
+    svc, _ = make(["....", "...."], [Pose(0, 0, Heading.E), Pose(1, 0, Heading.E)])
+    armed = svc.admin(encode(AdminCommand("fail", 1, after_covered=3)))
+    assert armed.ok and "armed for 3 covered sub-cells" in armed.message
+    assert armed.data["status"] == "alive" and armed.data["covered"] == 2
+    assert (await svc.command(0, cmd(0, "forward"))).status == "ok"  # the third sub-cell
+    assert svc.status()["robot.1"] == "failed"
+    assert (await svc.command(1, cmd(1, "forward"))).status == "failed"
+    # already reached: at once; only "fail" can wait, and the count is not negative
+    now = svc.admin(encode(AdminCommand("fail", 0, after_covered=1)))
+    assert now.ok and now.message == "robot 0: fail done" and now.data["status"] == "failed"
+    assert not svc.admin(encode(AdminCommand("freeze", 0, after_covered=5))).ok
+    assert not svc.admin(encode(AdminCommand("fail", 0, after_covered=-1))).ok
+
+
+async def test_an_armed_failure_ends_a_freeze_in_progress() -> None:
+    svc, _ = make(["....", "...."], [Pose(0, 0, Heading.E), Pose(1, 0, Heading.E)])
+    svc.admin(encode(AdminCommand("fail", 1, after_covered=3)))
+    svc.admin(encode(AdminCommand("freeze", 1)))
+    frozen = asyncio.ensure_future(svc.command(1, cmd(1, "forward")))
+    await asyncio.sleep(0.01)
+    assert not frozen.done()
+    await svc.command(0, cmd(0, "forward"))  # sets off robot 1's failure
+    reply = await asyncio.wait_for(frozen, 1.0)
+    assert reply.status == "failed"

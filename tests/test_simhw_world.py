@@ -274,3 +274,65 @@ def test_random_command_sequences_keep_invariants(script: list[tuple[int, str]])
         counts[rec.sub] += 1
         assert rec.visits == counts[rec.sub]
     assert np.array_equal(counts, w.visits)
+
+
+# ---- failures armed at a coverage (mstc up --kill-hw R@progress=P) ----------------------
+
+
+def _walk_east(w: World, robot: int, steps: int, at: float = 0.0) -> None:
+    for _ in range(steps):
+        w.begin_forward(robot, at=at)
+        w.finish_move(robot, at=at)
+
+
+def test_an_armed_failure_fires_right_after_the_step_that_covers_its_count() -> None:
+    w = World(OPEN, [Pose(0, 0, Heading.E), Pose(3, 0, Heading.E)])
+    assert w.covered == 2  # the starts
+    assert not w.arm_failure(1, covered=5, at=0.0)
+    _walk_east(w, 0, 2)
+    assert w.body(1).status is BodyStatus.ALIVE and w.fired == []
+    w.begin_forward(0, at=4.0)
+    w.finish_move(0, at=4.0)  # the fifth sub-cell covered: robot 1's motors die now
+    assert w.body(1).status is BodyStatus.FAILED
+    assert w.fired == [(1, 5, 4.0)] and w.armed == {}
+    with pytest.raises(BodyFailedError):
+        w.begin_forward(1, at=5.0)
+
+
+def test_revisits_do_not_count_towards_an_armed_failure() -> None:
+    w = World(OPEN, [Pose(0, 0, Heading.E), Pose(3, 0, Heading.E)])
+    w.arm_failure(1, covered=4, at=0.0)
+    _walk_east(w, 0, 1)  # 3 covered
+    for side in (Side.LEFT, Side.LEFT):
+        w.turn(0, side)
+    _walk_east(w, 0, 1)  # back onto its start: still 3
+    assert w.covered == 3 and w.body(1).status is BodyStatus.ALIVE
+    w.turn(1, Side.LEFT)
+    w.begin_forward(1, at=1.0)
+    w.finish_move(1, at=1.0)  # the armed robot's own step can set it off
+    assert w.covered == 4 and w.body(1).status is BodyStatus.FAILED
+    assert w.body(1).pose.sub == (2, 0)  # it arrived, then failed
+
+
+def test_an_armed_failure_already_reached_fires_at_once_and_undoes_a_motion() -> None:
+    w = World(OPEN, [Pose(0, 0, Heading.E), Pose(3, 0, Heading.E)])
+    w.begin_forward(1, at=0.0)  # robot 1 is between two sub-cells
+    assert w.arm_failure(1, covered=2, at=1.0)
+    assert w.fired == [(1, 2, 1.0)] and w.body(1).target is None
+    with pytest.raises(BodyFailedError):
+        w.finish_move(1, at=1.5)
+    with pytest.raises(BodyFailedError):
+        w.arm_failure(1, covered=9, at=2.0)
+
+
+def test_a_failure_by_hand_disarms_and_failures_due_together_fire_in_robot_order() -> None:
+    w = World(OPEN, [Pose(r, 0, Heading.E) for r in range(4)])
+    w.arm_failure(3, covered=6, at=0.0)
+    w.arm_failure(2, covered=6, at=0.0)
+    w.arm_failure(1, covered=7, at=0.0)
+    w.fail(1)
+    assert w.armed == {3: 6, 2: 6}
+    _walk_east(w, 0, 1, at=7.0)
+    assert w.fired == []
+    _walk_east(w, 0, 1, at=8.0)
+    assert w.fired == [(2, 6, 8.0), (3, 6, 8.0)] and w.armed == {}

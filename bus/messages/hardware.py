@@ -45,9 +45,13 @@ AdminAction = Literal["fail", "freeze", "unfreeze", "status", "shutdown"]
 
 @dataclass(frozen=True)
 class AdminCommand:
+    """``after_covered`` (with "fail" only) arms the failure: simhw fails the body the moment
+    that many sub-cells are covered, instead of when the command arrives."""
+
     KIND: ClassVar[str] = "admin_cmd"
     action: AdminAction
     robot: int | None = None
+    after_covered: int | None = None
 
 
 @dataclass(frozen=True)

@@ -45,8 +45,8 @@ from bus.messages.world import BumpEvent, CoverEvent, GroundTruthPose, RobotTrut
 # since (docs/protocol.md, "Versioning rule"), so one kind's change does not make old
 # recordings of the others unreadable.
 # 2: WorldState.first/.crossed; AgentState in bus/ with tree/claims; 3: TreeReport.gone/.dead;
-# 4: RobotStatus.roster; 5: Heartbeat.said/.heard
-SCHEMA_VERSION = 6
+# 4: RobotStatus.roster; 5: Heartbeat.said/.heard; 7: AdminCommand.after_covered
+SCHEMA_VERSION = 7
 
 
 class QosClass(enum.Enum):
@@ -179,7 +179,7 @@ KINDS: tuple[Kind, ...] = (
     # the simulated hardware (bus.messages.hardware)
     Kind(HwCommand, (HW_CMD,), C.CONTROL),
     Kind(HwReply, (HW_CMD,), C.CONTROL),
-    Kind(AdminCommand, (HW_ADMIN,), C.CONTROL),
+    Kind(AdminCommand, (HW_ADMIN,), C.CONTROL, since=7),
     Kind(AdminReply, (HW_ADMIN,), C.CONTROL),
     # the simulator's ground truth (bus.messages.world)
     Kind(GroundTruthPose, (family("sim/pose/{robot}", access=BY_SIMHW),), C.STREAM),

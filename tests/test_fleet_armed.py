@@ -1,0 +1,49 @@
+"""Body failures ordered at a coverage, armed in simhw (deploy/armed.py): the count of
+covered sub-cells an order stands for, and which armed orders a count sets off."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from deploy.armed import ArmedFailures, armable, covered_for
+from deploy.settings import KillOrder
+
+
+@pytest.mark.parametrize(("percent", "total", "covered"), [
+    (50.0, 1220, 610),
+    (38.7, 1220, 473),  # 472 sub-cells are 38.69 %
+    (0.0, 884, 0),
+    (100.0, 884, 884),
+    (64.4, 250, 161),  # 64.4 * 250 / 100 is 161.00000000000003 in floats
+])
+def test_covered_for_is_the_first_count_at_the_percent(percent: float, total: int,
+                                                       covered: int) -> None:
+    assert covered_for(percent, total) == covered
+
+
+@given(st.integers(1, 100_000), st.floats(0.0, 100.0, allow_nan=False))
+def test_covered_for_agrees_with_the_launchers_coverage_figure(total: int,
+                                                                percent: float) -> None:
+    # the launcher's figure is 100 * covered / total: due exactly from covered_for on
+    n = covered_for(round(percent, 3), total)
+    assert 100.0 * n / total >= round(percent, 3) - 1e-9
+    assert n == 0 or 100.0 * (n - 1) / total < round(percent, 3)
+
+
+def test_only_body_failures_at_a_coverage_are_armed_and_fire_once() -> None:
+    assert armable(KillOrder(1, percent=30.0, hw=True))
+    assert not armable(KillOrder(1, percent=30.0))  # a SIGKILL needs no simhw
+    assert not armable(KillOrder(1, seconds=3.0, hw=True))
+    armed = ArmedFailures()
+    second = armed.arm(KillOrder(2, percent=50.0, hw=True), 200)
+    first = armed.arm(KillOrder(1, percent=20.0, hw=True), 200)
+    assert (first.covered, second.covered) == (40, 100)
+    assert first.command().after_covered == 40 and first.command().robot == 1
+    assert armed.fired(39) == []
+    assert armed.fired(120) == [first, second]
+    assert armed.fired(200) == [] and armed.unfired == []
+    armed.arm(KillOrder(3, percent=90.0, hw=True), 200)
+    armed.disarm(3)
+    assert armed.unfired == []
