@@ -20,8 +20,6 @@ from bus.bridge import BoundedFifo, Bus
 from bus.config import ConnectionSettings
 from bus.messages import (
     MESSAGE_TYPES,
-    AdminCommand,
-    AdminReply,
     CoverEvent,
     DeathNotice,
     MissionStatus,
@@ -30,20 +28,14 @@ from bus.messages import (
     WorldState,
 )
 from bus.router import READY_MARK as ROUTER_READY
-from deploy.armed import ArmedFailures, armable
 from deploy.errors import FleetError
 from deploy.fleet import Child, FleetInfo, RunDir, mstc_argv, niced
+from deploy.kill_orders import KillOrders
 from deploy.progress import ProgressView, make_progress
 from deploy.security import FleetSecurity
-from deploy.settings import (
-    MISSION_COVERED,
-    NOT_CARRIED_OUT,
-    KillOrder,
-    MissionSetup,
-    UpSettings,
-)
+from deploy.settings import MISSION_COVERED, NOT_CARRIED_OUT, MissionSetup, UpSettings
 from deploy.summary import MissionTracker, format_summary, summarize
-from deploy.supervisor import KillSchedule, Supervisor
+from deploy.supervisor import Supervisor
 from planner.offline.rebalance import DEFAULT_RECOVERY
 
 SIMHW_READY = "simhw ready"
@@ -71,8 +63,6 @@ class Launcher:
     def __init__(self, setup: MissionSetup, settings: UpSettings, endpoint: str,
                  run_dir: RunDir, view: ProgressView) -> None:
         self.setup = setup
-        self.kills = KillSchedule(settings.kills)
-        self.armed = ArmedFailures()  # body failures simhw carries out at a coverage
         self.endpoint = endpoint
         self.mission = settings.mission
         self.run_dir = run_dir
@@ -86,10 +76,11 @@ class Launcher:
         self.agents: list[Child] = []
         self.tracker = MissionTracker(setup.reachable, setup.k)
         self.t0 = time.monotonic()
+        self.kills = KillOrders(settings.kills, self.mission, self.tracker, self.supervisor,
+                                self._say)
         # set when a percent-triggered kill may be due (and by a stopping signal)
         self.wake = self.supervisor.wake
         self.failed_verdict = ""
-        self.killed_at: dict[int, float] = {}  # robots failed by us, until a peer notices
         self._reported: set[str] = set()
         self._logged = 0
 
@@ -221,18 +212,15 @@ class Launcher:
         # At time scale 0 a mission lasts about a second: check percent kills per cover, not
         # per tick, so that "2@progress=40" lands near 40 %.
         if self.tracker.on_cover(event, time.monotonic()):
-            self._fire_armed()
-            if self.kills.waits_on_coverage(self.tracker.coverage):
+            self.kills.fire_armed()
+            if self.kills.waits_on_coverage():
                 self.wake.set()
 
     def _on_death(self, _key: str, notice: DeathNotice) -> None:
         # every death is told, not only those of our own kill orders (`mstc kill` from
         # another terminal, a crash); with the delay when we failed it ourselves
-        killed_at = self.killed_at.get(notice.robot)
-        after = "" if killed_at is None else \
-            f" {time.monotonic() - killed_at:.2f} s after it was failed"
-        if self.tracker.on_death(notice, after):
-            self.killed_at.pop(notice.robot, None)
+        if self.tracker.on_death(notice, self.kills.noticed(notice.robot)):
+            self.kills.forget(notice.robot)
 
     def _on_verdict(self, _key: str, status: MissionStatus) -> None:
         if status.state == "failed" and not self.failed_verdict:
@@ -250,7 +238,7 @@ class Launcher:
                 self.tracker.on_world(reply.msg, time.monotonic())
             except ValueError as error:
                 raise FleetError(f"simhw's world does not match: {error}") from error
-            self._fire_armed()
+            self.kills.fire_armed()
 
     # --- supervision -----------------------------------------------------------------------
 
@@ -283,7 +271,7 @@ class Launcher:
                 started = now
                 t.last_progress = now
                 self.view.event(f"[{now - self.t0:6.1f}s] mission started: all robots up")
-                await self._arm_body_failures(bus)
+                await self.kills.arm(bus)
             elif started is None and now - self.t0 > start_timeout:
                 missing = sorted(set(range(t.robots)) - t.heard)
                 return Outcome(1, f"agents not up after {start_timeout:.0f} s; robots not "
@@ -292,7 +280,7 @@ class Launcher:
             if started is not None and not t.complete:
                 # Once every sub-cell is covered a death tests nothing: orders due only
                 # now stay pending, listed as not carried out (a campaign counts them late).
-                await self._run_kills(bus, now - started)
+                await self.kills.run_due(bus, now - started)
             if t.complete:
                 if complete_at is None:
                     complete_at = now
@@ -357,56 +345,8 @@ class Launcher:
                 self.view.event(f"last lines of {child.log}:\n{child.tail(8)}")
         return None
 
-    async def _run_kills(self, bus: Bus, elapsed: float) -> None:
-        for order in self.kills.due(elapsed=elapsed, coverage=self.tracker.coverage):
-            self.killed_at[order.robot] = time.monotonic()
-            if order.hw:
-                await self._fail_body(bus, order.robot)
-            else:
-                self.supervisor.kill_agent(order.robot)
-                self.tracker.lose(order.robot, "killed by mstc up (SIGKILL)")
-            self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] {order.describe()}: done "
-                            f"(coverage {self.tracker.coverage:.1f} %)")
-
-    async def _arm_body_failures(self, bus: Bus) -> None:
-        # deploy/armed.py says why simhw, not this loop, carries these out
-        for order in self.kills.take(armable):
-            armed = self.armed.arm(order, self.tracker.total)
-            replies = await bus.query(keys.hw_admin(self.mission), armed.command(),
-                                      AdminReply, timeout=2.0)
-            if not replies or not replies[0].msg.ok:
-                why = replies[0].msg.message if replies else "no answer from simhw"
-                self.view.event(f"cannot arm {order.describe()} in simhw ({why}); it is "
-                                f"sent when due instead")
-                self.armed.disarm(order.robot)
-                self.kills.pending.append(order)
-                continue
-            self.tracker.failing[order.robot] = "body failed by mstc up"
-        self._fire_armed()
-
-    def _fire_armed(self) -> None:
-        t = self.tracker
-        for armed in self.armed.fired(t.covered):
-            robot = armed.order.robot
-            self.killed_at[robot] = time.monotonic()
-            t.lose(robot, "body failed by mstc up")
-            # the coverage simhw failed it at: exactly its order's, not when we heard
-            self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] {armed.order.describe()}: "
-                            f"done (coverage {100.0 * armed.covered / t.total:.1f} %)")
-
-    @property
-    def unfired(self) -> list[KillOrder]:
-        """Kill orders the mission ended before."""
-        return [*self.kills.pending, *self.armed.unfired]
-
-    async def _fail_body(self, bus: Bus, robot: int) -> None:
-        replies = await bus.query(keys.hw_admin(self.mission), AdminCommand("fail", robot),
-                                  AdminReply, timeout=2.0)
-        if not replies or not replies[0].msg.ok:
-            why = replies[0].msg.message if replies else "no answer from simhw"
-            self.view.event(f"cannot fail robot {robot}'s body: {why}")
-            return
-        self.tracker.lose(robot, "body failed by mstc up")
+    def _say(self, text: str) -> None:
+        self.view.event(f"[{time.monotonic() - self.t0:6.1f}s] {text}")
 
     def _flush_log(self) -> None:
         for line in self.tracker.log[self._logged:]:
@@ -439,9 +379,9 @@ async def launch(setup: MissionSetup, settings: UpSettings, endpoint: str, t0: f
                                 outcome=outcome.message)
             view.close()
             print(format_summary(summary), flush=True)
-            if launcher.unfired:  # a clean run is no survived kill: say what never came
+            if launcher.kills.unfired:  # a clean run is no survived kill: say what never came
                 print("  " + NOT_CARRIED_OUT + ", ".join(
-                    order.describe() for order in launcher.unfired), flush=True)
+                    order.describe() for order in launcher.kills.unfired), flush=True)
             rd.write_summary(summary.to_json())
             if outcome.code == 0 and not summary.complete:
                 return 1

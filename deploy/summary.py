@@ -105,7 +105,7 @@ class MissionTracker:
     # (life, detector) of death notices not taken: their detector was declared dead first
     refused: set[tuple[tuple[int, int], int | None]] = field(default_factory=set)
     log: list[str] = field(default_factory=list)
-    # robot -> why its body will fail in simhw (a failure mstc up armed: deploy/armed.py)
+    # robot -> why its body will fail in simhw (a failure mstc up armed: deploy/kill_orders.py)
     failing: dict[int, str] = field(default_factory=dict)
     model: FleetModel = field(init=False)  # the figures' source, as in mstc monitor / report
 

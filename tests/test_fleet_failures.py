@@ -49,7 +49,7 @@ from agent.offline.plan import compute_plan
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import WorldState, world_visits
-from deploy.armed import covered_for
+from deploy.kill_orders import covered_for
 from planner.algorithms import Family, algorithm
 from planner.maps import resolve_world
 from planner.offline.lockstep import TakeoverResult, simulate_failures

@@ -1,4 +1,4 @@
-"""Body failures ordered at a coverage, armed in simhw (deploy/armed.py): the count of
+"""Body failures ordered at a coverage, armed in simhw (deploy/kill_orders.py): the count of
 covered sub-cells an order stands for, and which armed orders a count sets off."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from deploy.armed import ArmedFailures, armable, covered_for
+from deploy.kill_orders import ArmedFailures, armable, covered_for
 from deploy.settings import KillOrder
 
 
