@@ -1,18 +1,21 @@
 """The kill orders of one ``mstc up`` mission, carried out (deploy/launch.py calls in):
-SIGKILLs and body failures when their moment comes, and body failures ordered at a share of
-the coverage armed in simhw ahead of time.
+those at a time when it comes, those at a share of the coverage armed in simhw ahead of time.
 
-Why armed: ``mstc up --kill-hw ID@progress=P`` used to send simhw its "fail" when the launcher saw the
-coverage reach P. A query's round trip under load is tenths of a second, and at time scale 0
-a whole mission lasts a second or two: in the chaos campaigns of 2026-12-06 such failures
-landed 14.7 points of coverage late in the median (61 at worst, after the mission's end),
-where a SIGKILL, which needs no answer, landed 1.0 late. So the launcher now sends each such
-order once the mission starts, with the number of covered sub-cells at which coverage
-reaches P, and simhw fails the body right after the step that covers the last of them
-(``simhw.world.World.arm_failure``). The launcher learns of it from the same cover events,
-so it knows the exact coverage it happened at.
+Why armed. The launcher hears coverage from simhw's cover events, and at time scale 0 it
+falls behind: a whole mission lasts a second or two, and it handles every message of every
+robot. Orders sent when the launcher saw their coverage landed late. In the chaos campaigns'
+records on this machine (2026-12-06), body failures landed 14.7 points of coverage late in
+the median (61 at worst, after the mission's end: they also wait for simhw's answer), and a
+SIGKILL ordered at 38.1 % found its robot still covering at 68.7 % (the launcher had
+heard 46.2 %). So when the mission starts the launcher sends simhw the number of covered
+sub-cells each order stands for, and simhw acts right after the step that covers the last
+of them: it fails the body itself ("fail", ``simhw.world.World.arm_failure``), or, for a
+SIGKILL, which only the launcher can send, holds every body ("pause",
+``World.pause_at``) until the launcher, once it has heard that coverage, has killed the
+agent and says "resume". Either way the death lands at the ordered coverage, and the
+launcher knows the exact figure.
 
-``ArmedFailures`` is the pure bookkeeping of the armed orders; ``KillOrders`` does the
+``ArmedOrders`` is the pure bookkeeping of the armed orders; ``KillOrders`` does the
 querying, the signalling and the telling.
 """
 
@@ -35,12 +38,15 @@ KILLED = "killed by mstc up (SIGKILL)"
 
 
 @dataclass(frozen=True)
-class ArmedFailure:
+class ArmedOrder:
     order: KillOrder
     covered: int  # sub-cells covered when simhw fails the body
 
     def command(self) -> AdminCommand:
-        return AdminCommand("fail", self.order.robot, after_covered=self.covered)
+        if self.order.hw:
+            return AdminCommand("fail", self.order.robot, after_covered=self.covered)
+        # a process simhw cannot kill: it holds the world there until we have
+        return AdminCommand("pause", None, after_covered=self.covered)
 
 
 def covered_for(percent: float, total: int) -> int:
@@ -51,26 +57,26 @@ def covered_for(percent: float, total: int) -> int:
 
 
 def armable(order: KillOrder) -> bool:
-    """Orders simhw can carry out alone: body failures at a coverage."""
-    return order.hw and order.percent is not None
+    """Orders at a coverage: simhw fails the body itself, or holds the world for a SIGKILL."""
+    return order.percent is not None
 
 
-class ArmedFailures:
+class ArmedOrders:
     """The armed orders not yet fired, by robot."""
 
     def __init__(self) -> None:
-        self.armed: dict[int, ArmedFailure] = {}
+        self.armed: dict[int, ArmedOrder] = {}
 
-    def arm(self, order: KillOrder, total: int) -> ArmedFailure:
+    def arm(self, order: KillOrder, total: int) -> ArmedOrder:
         assert order.percent is not None, "only coverage orders are armed"
-        armed = ArmedFailure(order, covered_for(order.percent, total))
+        armed = ArmedOrder(order, covered_for(order.percent, total))
         self.armed[order.robot] = armed
         return armed
 
     def disarm(self, robot: int) -> None:
         self.armed.pop(robot, None)
 
-    def fired(self, covered: int) -> list[ArmedFailure]:
+    def fired(self, covered: int) -> list[ArmedOrder]:
         """The armed failures that ``covered`` sub-cells set off, removed from the armed."""
         out = [a for a in self.armed.values() if covered >= a.covered]
         for a in out:
@@ -92,12 +98,13 @@ class KillOrders:
                  tracker: MissionTracker, supervisor: Supervisor,
                  say: Callable[[str], None]) -> None:
         self.schedule = KillSchedule(orders)
-        self.armed = ArmedFailures()
+        self.armed = ArmedOrders()
         self.mission = mission
         self.tracker = tracker
         self.supervisor = supervisor
         self.say = say
         self.killed_at: dict[int, float] = {}  # robots failed by us, until a peer notices
+        self.resume_due = False  # simhw holds the world for a SIGKILL we have now sent
 
     def waits_on_coverage(self) -> bool:
         return self.schedule.waits_on_coverage(self.tracker.coverage)
@@ -128,8 +135,12 @@ class KillOrders:
             self.say(f"{order.describe()}: done (coverage {t.coverage:.1f} %)")
 
     async def arm(self, bus: Bus) -> None:
-        """Send simhw the coverage body failures (when the mission starts)."""
-        for order in self.schedule.take(armable):
+        """Send simhw the orders at a coverage (when the mission starts). One due only with
+        every sub-cell covered stays in the schedule: a death then tests nothing, and the
+        launcher lists it as not carried out."""
+        total = self.tracker.total
+        for order in self.schedule.take(
+                lambda o: armable(o) and covered_for(o.percent or 0.0, total) < total):
             armed = self.armed.arm(order, self.tracker.total)
             replies = await bus.query(keys.hw_admin(self.mission), armed.command(),
                                       AdminReply, timeout=2.0)
@@ -140,18 +151,39 @@ class KillOrders:
                 self.armed.disarm(order.robot)
                 self.schedule.pending.append(order)
                 continue
-            self.tracker.failing[order.robot] = BODY_FAILED
+            if order.hw:
+                self.tracker.failing[order.robot] = BODY_FAILED
         self.fire_armed()
 
-    def fire_armed(self) -> None:
-        """Tell the armed failures the coverage heard so far has set off."""
+    def fire_armed(self) -> bool:
+        """Carry out (SIGKILL) or tell (body failures) the armed orders the coverage heard so
+        far has set off; True if simhw now waits for a "resume"."""
         t = self.tracker
         for armed in self.armed.fired(t.covered):
-            self.killed_at[armed.order.robot] = time.monotonic()
-            t.lose(armed.order.robot, BODY_FAILED)
-            # the coverage simhw failed it at: exactly its order's, not when we heard
-            self.say(f"{armed.order.describe()}: done "
+            order = armed.order
+            self.killed_at[order.robot] = time.monotonic()
+            if order.hw:
+                t.lose(order.robot, BODY_FAILED)
+            else:
+                self.supervisor.kill_agent(order.robot)
+                t.lose(order.robot, KILLED)
+                self.resume_due = True
+            # the coverage it happened at in simhw: exactly its order's, not when we heard
+            self.say(f"{order.describe()}: done "
                      f"(coverage {100.0 * armed.covered / t.total:.1f} %)")
+        return self.resume_due
+
+    async def resume_if_due(self, bus: Bus) -> None:
+        """Let simhw's world go on after the SIGKILLs it was held for (retried per tick)."""
+        if not self.resume_due:
+            return
+        replies = await bus.query(keys.hw_admin(self.mission), AdminCommand("resume"),
+                                  AdminReply, timeout=2.0)
+        if replies and replies[0].msg.ok:
+            self.resume_due = False
+        else:
+            why = replies[0].msg.message if replies else "no answer from simhw"
+            self.say(f"cannot resume simhw's world after a kill: {why}; trying again")
 
     async def _fail_body(self, bus: Bus, robot: int) -> None:
         replies = await bus.query(keys.hw_admin(self.mission), AdminCommand("fail", robot),

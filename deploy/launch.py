@@ -209,12 +209,11 @@ class Launcher:
             self._on_verdict(key, msg)
 
     def _on_cover(self, event: CoverEvent) -> None:
-        # At time scale 0 a mission lasts about a second: check percent kills per cover, not
-        # per tick, so that "2@progress=40" lands near 40 %.
-        if self.tracker.on_cover(event, time.monotonic()):
-            self.kills.fire_armed()
-            if self.kills.waits_on_coverage():
-                self.wake.set()
+        # Per cover, not per tick: armed orders at a coverage (deploy/kill_orders.py) fire here,
+        # and simhw holds the world for a SIGKILL until the watcher says "resume".
+        if self.tracker.on_cover(event, time.monotonic()) and (
+                self.kills.fire_armed() or self.kills.waits_on_coverage()):
+            self.wake.set()
 
     def _on_death(self, _key: str, notice: DeathNotice) -> None:
         # every death is told, not only those of our own kill orders (`mstc kill` from
@@ -238,7 +237,8 @@ class Launcher:
                 self.tracker.on_world(reply.msg, time.monotonic())
             except ValueError as error:
                 raise FleetError(f"simhw's world does not match: {error}") from error
-            self.kills.fire_armed()
+            if self.kills.fire_armed():
+                self.wake.set()
 
     # --- supervision -----------------------------------------------------------------------
 
@@ -277,6 +277,7 @@ class Launcher:
                 return Outcome(1, f"agents not up after {start_timeout:.0f} s; robots not "
                                   f"announced: {missing} (see their logs in "
                                   f"{self.run_dir.logs})")
+            await self.kills.resume_if_due(bus)
             if started is not None and not t.complete:
                 # Once every sub-cell is covered a death tests nothing: orders due only
                 # now stay pending, listed as not carried out (a campaign counts them late).

@@ -111,6 +111,7 @@ class HwService:
         self.firsts = FirstVisitors(world.grid.free.shape)
         self._bumps_sent = 0
         self._fired_seen = 0
+        self._pauses_seen = 0
         self.counts: Counter[str] = Counter()
         self.shutdown = asyncio.Event()
         # The bus's drop counter, when served over Zenoh: the bridge drops undecodable
@@ -189,7 +190,8 @@ class HwService:
             return _Done("rejected", message=str(error))
 
     async def _until_not_frozen(self, robot: int) -> None:
-        while self.world.body(robot).status is BodyStatus.FROZEN:
+        # and not held by a pause of the whole world (World.pause_at)
+        while self.world.body(robot).status is BodyStatus.FROZEN or self.world.paused:
             await self._changed.wait()
 
     def _notify(self) -> None:
@@ -260,6 +262,8 @@ class HwService:
         if cmd.action == "shutdown":
             self.shutdown.set()
             return AdminReply(ok=True, message="shutting down")
+        if cmd.action in ("pause", "resume"):
+            return self._pause_or_resume(cmd)
         if cmd.robot is None:
             raise CommandRejected(f"admin {cmd.action} needs a robot")
         if cmd.after_covered is not None:
@@ -282,7 +286,24 @@ class HwService:
             data={"robot": robot, "status": self.world.body(robot).status.value,
                   "covered": self.world.covered})
 
+    def _pause_or_resume(self, cmd: AdminCommand) -> AdminReply:
+        if cmd.action == "resume":
+            self.world.resume()
+            self._notify()
+            return AdminReply(ok=True, message="resumed", data={"covered": self.world.covered})
+        if cmd.after_covered is None or cmd.after_covered < 0:
+            raise CommandRejected("pause needs after_covered, 0 or more")
+        now = self.world.pause_at(cmd.after_covered, self.clock.now())
+        self._report_fired()
+        return AdminReply(ok=True, message="paused" if now else
+                          f"pause armed for {cmd.after_covered} covered sub-cells",
+                          data={"covered": self.world.covered})
+
     def _report_fired(self) -> None:
+        for covered, at in self.world.pauses[self._pauses_seen:]:
+            _log.warning("every body held at %d covered sub-cells (sim %.1f s), until resumed",
+                         covered, at)
+        self._pauses_seen = len(self.world.pauses)
         for robot, covered, at in self.world.fired[self._fired_seen:]:
             _log.warning("robot %d's body failed as armed, at %d covered sub-cells (sim %.1f s)",
                          robot, covered, at)

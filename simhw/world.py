@@ -66,6 +66,11 @@ class World:
         # failures so fired, as (robot, covered, time)
         self.armed: dict[int, int] = {}
         self.fired: list[tuple[int, int, float]] = []
+        # ``covered`` counts at which every body is held (pause_at), whether they are now,
+        # and the pauses so far as (covered, time)
+        self.checkpoints: set[int] = set()
+        self.paused = False
+        self.pauses: list[tuple[int, float]] = []
         taken: dict[SubCell, int] = {}
         for robot, pose in enumerate(poses):
             self._check_start(robot, pose, taken)
@@ -204,6 +209,28 @@ class World:
         self.fail(robot)
         self.fired.append((robot, self.covered, at))
 
+    def pause_at(self, covered: int, at: float) -> bool:
+        """Hold every body from the moment ``covered`` sub-cells are covered (right after the
+        step that covers the last of them; at once if they already are) until ``resume``:
+        the world stands still while a slow operator catches up. True if paused now.
+
+        The world only records it: the server holds the bodies' next commands and the
+        arrivals of motions under way (simhw.service).
+        """
+        if self.covered >= covered:
+            self._pause(at)
+            return True
+        self.checkpoints.add(covered)
+        return False
+
+    def resume(self) -> None:
+        self.paused = False
+
+    def _pause(self, at: float) -> None:
+        self.checkpoints = {c for c in self.checkpoints if c > self.covered}
+        self.paused = True
+        self.pauses.append((self.covered, at))
+
     def vanish(self, robot: int) -> None:
         """The robot is dead: its body stops holding sub-cells (no bumps, no sonar echo)."""
         self._get(robot).vanished = True
@@ -264,3 +291,5 @@ class World:
             for armed, when in sorted(self.armed.items()):
                 if self.covered >= when:
                     self._fire(armed, at)
+            if any(c <= self.covered for c in self.checkpoints):
+                self._pause(at)

@@ -320,9 +320,14 @@ async def test_up_ormstc_with_a_robot_killed_mid_mission(bus: Bus, router: str,
     finally:
         stop_processes([proc])
     assert code == 0, output
-    assert f"SIGKILL agent {victim} at {percent} %" in output
     summary = summary_of(tmp_path / "run", grid, starts)
     assert [lost["robot"] for lost in summary["robots_lost"]] == [victim]
+    # simhw held the world at the order's coverage until the launcher had killed the agent
+    held = covered_for(float(percent), summary["reachable"])
+    log = (tmp_path / "run" / "logs" / "simhw.log").read_text()
+    assert f"every body held at {held} covered sub-cells" in log, log
+    said = f"{100 * held / summary['reachable']:.1f}"
+    assert f"SIGKILL agent {victim} at {percent} %: done (coverage {said} %)" in output, output
     visits = np.zeros(grid.shape, dtype=np.int64)
     for walk in heard.walks.values():
         for r, c in walk:

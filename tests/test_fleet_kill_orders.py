@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from deploy.kill_orders import ArmedFailures, armable, covered_for
+from bus.messages import AdminCommand
+from deploy.kill_orders import ArmedOrders, armable, covered_for
 from deploy.settings import KillOrder
 
 
@@ -32,15 +33,17 @@ def test_covered_for_agrees_with_the_launchers_coverage_figure(total: int,
     assert n == 0 or 100.0 * (n - 1) / total < round(percent, 3)
 
 
-def test_only_body_failures_at_a_coverage_are_armed_and_fire_once() -> None:
+def test_orders_at_a_coverage_are_armed_and_fire_once() -> None:
     assert armable(KillOrder(1, percent=30.0, hw=True))
-    assert not armable(KillOrder(1, percent=30.0))  # a SIGKILL needs no simhw
+    assert armable(KillOrder(1, percent=30.0))  # simhw holds the world for the SIGKILL
     assert not armable(KillOrder(1, seconds=3.0, hw=True))
-    armed = ArmedFailures()
+    held = ArmedOrders().arm(KillOrder(4, percent=10.0), 200).command()
+    assert (held.action, held.robot, held.after_covered) == ("pause", None, 20)
+    armed = ArmedOrders()
     second = armed.arm(KillOrder(2, percent=50.0, hw=True), 200)
     first = armed.arm(KillOrder(1, percent=20.0, hw=True), 200)
     assert (first.covered, second.covered) == (40, 100)
-    assert first.command().after_covered == 40 and first.command().robot == 1
+    assert first.command() == AdminCommand("fail", 1, after_covered=40)
     assert armed.fired(39) == []
     assert armed.fired(120) == [first, second]
     assert armed.fired(200) == [] and armed.unfired == []

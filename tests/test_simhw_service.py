@@ -314,3 +314,18 @@ async def test_an_armed_failure_ends_a_freeze_in_progress() -> None:
     await svc.command(0, cmd(0, "forward"))  # sets off robot 1's failure
     reply = await asyncio.wait_for(frozen, 1.0)
     assert reply.status == "failed"
+
+
+async def test_a_pause_holds_every_body_until_resume() -> None:
+    svc, _ = make(["....", "...."], [Pose(0, 0, Heading.E), Pose(1, 0, Heading.E)])
+    armed = svc.admin(encode(AdminCommand("pause", after_covered=3)))
+    assert armed.ok and armed.message == "pause armed for 3 covered sub-cells"
+    assert not svc.admin(encode(AdminCommand("pause"))).ok  # needs the count
+    assert (await svc.command(0, cmd(0, "forward"))).status == "ok"  # covers the third
+    held = [asyncio.ensure_future(svc.command(r, cmd(r, "forward", cmd_id=2)))
+            for r in (0, 1)]
+    await asyncio.sleep(0.01)
+    assert not any(h.done() for h in held) and svc.world.covered == 3
+    assert svc.admin(encode(AdminCommand("resume"))).ok
+    replies = await asyncio.wait_for(asyncio.gather(*held), 1.0)
+    assert [r.status for r in replies] == ["ok", "ok"] and svc.world.covered == 5

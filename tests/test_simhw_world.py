@@ -336,3 +336,15 @@ def test_a_failure_by_hand_disarms_and_failures_due_together_fire_in_robot_order
     assert w.fired == []
     _walk_east(w, 0, 1, at=8.0)
     assert w.fired == [(2, 6, 8.0), (3, 6, 8.0)] and w.armed == {}
+
+
+def test_a_pause_holds_from_the_step_that_covers_its_count_until_resumed() -> None:
+    w = World(OPEN, [Pose(0, 0, Heading.E), Pose(3, 0, Heading.E)])
+    assert not w.pause_at(4, at=0.0) and not w.paused
+    _walk_east(w, 0, 1)
+    assert not w.paused
+    _walk_east(w, 1, 1, at=3.0)  # the fourth sub-cell
+    assert w.paused and w.pauses == [(4, 3.0)] and w.checkpoints == set()
+    w.resume()
+    assert not w.paused
+    assert w.pause_at(2, at=5.0) and w.pauses[-1] == (4, 5.0)  # already there: at once

@@ -40,13 +40,15 @@ class HwReply:
     sim_time: float
 
 
-AdminAction = Literal["fail", "freeze", "unfreeze", "status", "shutdown"]
+AdminAction = Literal["fail", "freeze", "unfreeze", "status", "shutdown", "pause", "resume"]
 
 
 @dataclass(frozen=True)
 class AdminCommand:
-    """``after_covered`` (with "fail" only) arms the failure: simhw fails the body the moment
-    that many sub-cells are covered, instead of when the command arrives."""
+    """``after_covered`` arms the command for the moment that many sub-cells are covered:
+    with "fail" simhw fails the body then, instead of when the command arrives; "pause"
+    (which needs it) holds every body from then until a "resume", so that a launcher can
+    SIGKILL an agent at that coverage however far behind it hears."""
 
     KIND: ClassVar[str] = "admin_cmd"
     action: AdminAction
