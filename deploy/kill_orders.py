@@ -40,7 +40,7 @@ KILLED = "killed by mstc up (SIGKILL)"
 @dataclass(frozen=True)
 class ArmedOrder:
     order: KillOrder
-    covered: int  # sub-cells covered when simhw fails the body
+    covered: int  # sub-cells covered when simhw fails the body or holds the world
 
     def command(self) -> AdminCommand:
         if self.order.hw:
@@ -77,7 +77,7 @@ class ArmedOrders:
         self.armed.pop(robot, None)
 
     def fired(self, covered: int) -> list[ArmedOrder]:
-        """The armed failures that ``covered`` sub-cells set off, removed from the armed."""
+        """The armed orders that ``covered`` sub-cells set off, removed from the armed."""
         out = [a for a in self.armed.values() if covered >= a.covered]
         for a in out:
             del self.armed[a.order.robot]
@@ -89,7 +89,8 @@ class ArmedOrders:
 
 
 class KillOrders:
-    """One mission's kill orders: due ones carried out, coverage body failures armed.
+    """One mission's kill orders: those at a time carried out when due, those at a coverage
+    armed in simhw and carried out (SIGKILL) or told (body failure) when heard.
 
     ``say`` tells the operator one line (the launcher stamps it with the mission's time).
     """
@@ -177,13 +178,15 @@ class KillOrders:
         """Let simhw's world go on after the SIGKILLs it was held for (retried per tick)."""
         if not self.resume_due:
             return
+        # Cleared before asking: once simhw resumes, the world may reach the next pause and
+        # its kill set the flag again before this answer is back.
+        self.resume_due = False
         replies = await bus.query(keys.hw_admin(self.mission), AdminCommand("resume"),
                                   AdminReply, timeout=2.0)
-        if replies and replies[0].msg.ok:
-            self.resume_due = False
-        else:
+        if not replies or not replies[0].msg.ok:
             why = replies[0].msg.message if replies else "no answer from simhw"
             self.say(f"cannot resume simhw's world after a kill: {why}; trying again")
+            self.resume_due = True
 
     async def _fail_body(self, bus: Bus, robot: int) -> None:
         replies = await bus.query(keys.hw_admin(self.mission), AdminCommand("fail", robot),

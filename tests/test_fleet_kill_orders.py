@@ -3,13 +3,20 @@ covered sub-cells an order stands for, and which armed orders a count sets off."
 
 from __future__ import annotations
 
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bus.messages import AdminCommand
-from deploy.kill_orders import ArmedOrders, armable, covered_for
+from bus.messages import AdminCommand, AdminReply
+from deploy.fleet import RunDir
+from deploy.kill_orders import ArmedOrders, KillOrders, armable, covered_for
 from deploy.settings import KillOrder
+from deploy.summary import MissionTracker
+from deploy.supervisor import Supervisor
 
 
 @pytest.mark.parametrize(("percent", "total", "covered"), [
@@ -50,3 +57,22 @@ def test_orders_at_a_coverage_are_armed_and_fire_once() -> None:
     armed.arm(KillOrder(3, percent=90.0, hw=True), 200)
     armed.disarm(3)
     assert armed.unfired == []
+
+
+async def test_a_kill_during_a_resume_gets_a_resume_of_its_own(tmp_path: Path) -> None:
+    # simhw resumes as the request arrives; the world can reach the next pause, and its
+    # SIGKILL be sent, before the answer is back: that pause must be resumed too
+    orders = KillOrders([], "m", MissionTracker(np.ones((2, 2), dtype=bool), 2),
+                        Supervisor(RunDir(tmp_path)), lambda _text: None)
+    asked: list[str] = []
+
+    class Bus:
+        async def query(self, _key: str, cmd: AdminCommand, *_args: object,
+                        **_kwargs: object) -> list[SimpleNamespace]:
+            asked.append(cmd.action)
+            orders.resume_due = True  # the next pause's kill, while we wait
+            return [SimpleNamespace(msg=AdminReply(True, "resumed"))]
+
+    orders.resume_due = True
+    await orders.resume_if_due(Bus())  # type: ignore[arg-type]
+    assert asked == ["resume"] and orders.resume_due
