@@ -56,9 +56,11 @@ def covered_for(percent: float, total: int) -> int:
     return min(total, max(0, math.ceil(round(percent * total / 100.0, 9))))
 
 
-def armable(order: KillOrder) -> bool:
-    """Orders at a coverage: simhw fails the body itself, or holds the world for a SIGKILL."""
-    return order.percent is not None
+def armable(order: KillOrder, total: int) -> bool:
+    """Orders at a coverage short of all ``total`` sub-cells: simhw fails the body itself, or
+    holds the world for a SIGKILL. One due only with every sub-cell covered is not armed: a
+    death then tests nothing, and the launcher lists it as not carried out."""
+    return order.percent is not None and covered_for(order.percent, total) < total
 
 
 class ArmedOrders:
@@ -136,13 +138,10 @@ class KillOrders:
             self.say(f"{order.describe()}: done (coverage {t.coverage:.1f} %)")
 
     async def arm(self, bus: Bus) -> None:
-        """Send simhw the orders at a coverage (when the mission starts). One due only with
-        every sub-cell covered stays in the schedule: a death then tests nothing, and the
-        launcher lists it as not carried out."""
+        """Send simhw the orders at a coverage (when the mission starts)."""
         total = self.tracker.total
-        for order in self.schedule.take(
-                lambda o: armable(o) and covered_for(o.percent or 0.0, total) < total):
-            armed = self.armed.arm(order, self.tracker.total)
+        for order in self.schedule.take(lambda o: armable(o, total)):
+            armed = self.armed.arm(order, total)
             replies = await bus.query(keys.hw_admin(self.mission), armed.command(),
                                       AdminReply, timeout=2.0)
             if not replies or not replies[0].msg.ok:

@@ -314,7 +314,7 @@ class HwService:
     def status(self) -> dict[str, int | float | str]:
         data: dict[str, int | float | str] = {
             "robots": self.world.k, "sim_time": self.clock.now(),
-            "covered": int((self.world.visits > 0).sum()),
+            "covered": self.world.covered,
             "free": int(self.world.grid.free.sum())}
         data.update({f"count.{k}": v for k, v in sorted(self.counts.items())})
         data.update({f"robot.{b.robot}": b.status.value for b in self.world.bodies()})

@@ -205,8 +205,7 @@ class World:
         return False
 
     def _fire(self, robot: int, at: float) -> None:
-        self.armed.pop(robot, None)
-        self.fail(robot)
+        self.fail(robot)  # disarms it
         self.fired.append((robot, self.covered, at))
 
     def pause_at(self, covered: int, at: float) -> bool:

@@ -41,9 +41,12 @@ def test_covered_for_agrees_with_the_launchers_coverage_figure(total: int,
 
 
 def test_orders_at_a_coverage_are_armed_and_fire_once() -> None:
-    assert armable(KillOrder(1, percent=30.0, hw=True))
-    assert armable(KillOrder(1, percent=30.0))  # simhw holds the world for the SIGKILL
-    assert not armable(KillOrder(1, seconds=3.0, hw=True))
+    assert armable(KillOrder(1, percent=30.0, hw=True), 200)
+    assert armable(KillOrder(1, percent=30.0), 200)  # simhw holds the world for the SIGKILL
+    assert not armable(KillOrder(1, seconds=3.0, hw=True), 200)
+    assert not armable(KillOrder(1, percent=100.0), 200)  # due only once all is covered
+    assert armable(KillOrder(1, percent=99.5), 200)  # 199 of 200
+    assert not armable(KillOrder(1, percent=99.6), 200)  # 199.2: the 200th
     held = ArmedOrders().arm(KillOrder(4, percent=10.0), 200).command()
     assert (held.action, held.robot, held.after_covered) == ("pause", None, 20)
     armed = ArmedOrders()
