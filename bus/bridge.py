@@ -268,16 +268,19 @@ class Bus:
         ``timeout`` seconds (bad replies are counted as drops)."""
         loop = self.loop
         done = loop.create_future()
-        raw: list[tuple[str, bytes | None]] = []
+        raw: list[tuple[str, bytes | str]] = []  # a payload, or the text of an error reply
         lock = threading.Lock()
 
         def on_reply(reply: zenoh.Reply) -> None:
             sample = reply.ok
+            if sample is not None:
+                got: tuple[str, bytes | str] = (str(sample.key_expr), sample.payload.to_bytes())
+            else:  # e.g. Zenoh's "Timeout" when the queryable answered too late
+                error = reply.err
+                got = (key, "" if error is None else
+                       error.payload.to_bytes().decode("utf-8", "replace"))
             with lock:
-                if sample is not None:
-                    raw.append((str(sample.key_expr), sample.payload.to_bytes()))
-                else:
-                    raw.append((key, None))
+                raw.append(got)
 
         def on_done() -> None:
             # A closed loop means nobody awaits this query any more.
@@ -305,8 +308,8 @@ class Bus:
             got = list(raw)
         out: list[Received[M]] = []
         for reply_key, data in got:
-            if data is None:
-                self.drops.count(keys.kind_of(reply_key), "reply_error")
+            if isinstance(data, str):
+                self.drops.count(keys.kind_of(reply_key), "reply_error", data)
                 continue
             msg = self.decode_or_count(reply_key, data, expected)
             if msg is not None:

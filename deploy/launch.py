@@ -282,13 +282,17 @@ class Launcher:
                 # Once every sub-cell is covered a death tests nothing: orders due only
                 # now stay pending, listed as not carried out (a campaign counts them late).
                 await self.kills.run_due(bus, now - started)
+            if not t.complete and self._all_stopped():
+                # What we heard can lag what simhw saw (a loaded host, a burst of covers at
+                # time scale 0, covers still being recovered): the world decides, not us.
+                await self.query_world(bus)
             if t.complete:
                 if complete_at is None:
                     complete_at = now
                     self.view.event(f"[{now - self.t0:6.1f}s] {MISSION_COVERED}")
                 if self._all_settled() or now - complete_at > s.linger:
                     return Outcome(0, "every reachable free sub-cell was covered")
-            elif all(c.returncode is not None for c in self.agents):
+            elif self._all_stopped():
                 return Outcome(1, "every agent has stopped; " + self._uncovered())
             elif started is not None and now - t.last_progress > s.stall_timeout:
                 return Outcome(1, self._stall_diagnosis(now - t.last_progress))
@@ -298,6 +302,9 @@ class Launcher:
                 async with asyncio.timeout(TICK_S):
                     await self.wake.wait()
             self.wake.clear()
+
+    def _all_stopped(self) -> bool:
+        return all(c.returncode is not None for c in self.agents)
 
     def _all_settled(self) -> bool:
         return all(v.completed or v.lost or self.agents[v.robot].returncode is not None

@@ -111,6 +111,9 @@ class MissionTracker:
 
     def __post_init__(self) -> None:
         self.visits = np.zeros(self.reachable.shape, dtype=np.int64)
+        # Counted, not summed per question: the launcher asks at every cover it hears.
+        self._total = int(self.reachable.sum())
+        self._covered = 0
         self.views = [SupervisedRobot(r) for r in range(self.robots)]
         self.model = FleetModel(max_events=100)
 
@@ -123,11 +126,11 @@ class MissionTracker:
 
     @property
     def total(self) -> int:
-        return int(self.reachable.sum())
+        return self._total
 
     @property
     def covered(self) -> int:
-        return int(((self.visits > 0) & self.reachable).sum())
+        return self._covered
 
     @property
     def coverage(self) -> float:
@@ -146,9 +149,10 @@ class MissionTracker:
         r, c = event.cell
         if not (0 <= r < self.visits.shape[0] and 0 <= c < self.visits.shape[1]):
             return False
-        new = self.visits[r, c] == 0 and bool(self.reachable[r, c])
+        new = self.visits[r, c] == 0 and bool(self.reachable[r, c]) and event.visits > 0
         self.visits[r, c] = max(int(self.visits[r, c]), event.visits)
         if new:
+            self._covered += 1
             self.last_progress = now
         return bool(new)
 
@@ -160,6 +164,7 @@ class MissionTracker:
             raise ValueError("world's free mask disagrees with the map the launcher loaded")
         before = self.covered
         self.visits = np.maximum(self.visits, world_visits(state).astype(np.int64))
+        self._covered = int(((self.visits > 0) & self.reachable).sum())
         for truth in state.robots:
             if 0 <= truth.robot < self.robots:
                 view = self.views[truth.robot]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import logging
 import signal
 import subprocess
 import sys
@@ -160,16 +161,20 @@ async def test_query_sync_and_async_responders(bus: Bus, other: Bus) -> None:
     assert [r.msg for r in replies] == [AdminReply(ok=True, message="freeze 3")]
 
 
-async def test_query_errors_are_counted(bus: Bus, other: Bus) -> None:
+async def test_query_errors_are_counted(bus: Bus, other: Bus,
+                                        caplog: pytest.LogCaptureFixture) -> None:
     def broken(_request: AdminCommand) -> AdminReply:
         raise ValueError("cannot")
 
     other.declare_queryable(keys.hw_admin(bus.mission), broken, AdminCommand)
     await asyncio.sleep(0.2)
-    replies = await bus.query(keys.hw_admin(bus.mission), AdminCommand("status"),
-                              AdminReply, timeout=2.0)
+    with caplog.at_level(logging.WARNING, logger="mstc.bus.drops"):
+        replies = await bus.query(keys.hw_admin(bus.mission), AdminCommand("status"),
+                                  AdminReply, timeout=2.0)
     assert replies == []
     assert bus.drops.total("hw/admin", "reply_error") == 1
+    # the warning says what the other side answered, not only that it was an error
+    assert "responder failed: cannot" in caplog.text
     # A malformed request is answered with an error too, not a crash of the server.
     bad = await bus.query(keys.hw_admin(bus.mission), progress(1), AdminReply, timeout=2.0)
     assert bad == []

@@ -263,6 +263,29 @@ def test_world_state_is_the_authority_for_moves_and_failed_bodies() -> None:
     assert "50.0 %" in format_summary(summary)
 
 
+def test_tracker_count_follows_covers_and_world_answers_interleaved() -> None:
+    # The launcher counts covers as they come and recounts at each world answer (both are
+    # asked at every cover it hears): the count must be the brute-force one at every step.
+    free = np.ones((6, 8), dtype=bool)
+    free[:, 4:6] = False  # columns 6..7 are a component no robot starts in
+    grid = OccupancyGrid(free)
+    tracker = MissionTracker(reachable_sub_cells(grid, ((0, 0),)), robots=2)
+    rng = np.random.default_rng(11)
+    truth = np.zeros((6, 8), dtype=np.int64)
+    for step in range(300):
+        cell = (int(rng.integers(0, 7)), int(rng.integers(0, 9)))  # some off the map
+        if rng.random() < 0.1:  # a world answer holding covers never heard
+            truth[rng.integers(0, 6, size=3), rng.integers(0, 8, size=3)] += 1
+            tracker.on_world(make_world_state("m", free, truth, (), float(step), 0.0), step)
+        elif cell[0] < 6 and cell[1] < 8:
+            truth[cell] += 1
+            tracker.on_cover(CoverEvent(0, cell, float(step), int(truth[cell])), step)
+        else:
+            assert not tracker.on_cover(CoverEvent(0, cell, float(step), 1), step)
+        assert tracker.covered == int(((truth > 0) & tracker.reachable).sum())
+    assert tracker.total == 24
+
+
 def test_world_state_of_another_map_is_refused() -> None:
     tracker = MissionTracker(reachable_sub_cells(_open_grid(4, 4), ((0, 0),)), robots=1)
     free = np.zeros((4, 4), dtype=bool)

@@ -48,6 +48,7 @@ class CoverageMap:
         self.curve: list[tuple[float, float, int]] = []
         self.complete_at: tuple[float, float] | None = None
         self._reachable: BoolArray | None = None
+        self._reachable_count = 0  # its sum, counted when it changes: asked at every cover
         self._tried: set[SubCell] = set()
         self._in_reach = 0
         self._counts: npt.NDArray[np.int64] | None = None  # visits as an array, once mapped
@@ -128,6 +129,7 @@ class CoverageMap:
             self._tried |= fresh
             self._reachable = reachable_sub_cells(OccupancyGrid(self.free),
                                                   tuple(sorted(self._tried)))
+            self._reachable_count = int(self._reachable.sum())
             self._in_reach = sum(1 for r, c in self.visits
                                  if 0 <= r < h and 0 <= c < w and self._reachable[r, c])
         else:
@@ -146,7 +148,7 @@ class CoverageMap:
 
     def total(self, positions: Iterable[SubCell]) -> int | None:
         reachable = self.reachable(positions)
-        return None if reachable is None else int(reachable.sum())
+        return None if reachable is None else self._reachable_count
 
     def revisits(self) -> int:
         """Visits beyond the first, over all sub-cells."""
