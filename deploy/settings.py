@@ -27,7 +27,7 @@ from planner.maps import resolve_world
 from planner.offline.rebalance import DEFAULT_RECOVERY
 from planner.placement import parse_starts, random_starts
 from planner.trees import build_tree
-from planner.types import BoolArray, OccupancyGrid, SubCell
+from planner.types import BoolArray, OccupancyGrid, Plan, SubCell
 
 # 40 simulated seconds per wall second: a forward step (1.93 s simulated) takes ~50 ms, so
 # coverage visibly grows, and the office demo (6 robots, one killed: ~330 moves of ~2.5
@@ -160,6 +160,28 @@ def parse_kill(text: str, hw: bool = False) -> KillOrder:
     return KillOrder(int(match["robot"]), seconds=float(match["sec"]), hw=hw)
 
 
+def mission_starts(settings: UpSettings, grid: OccupancyGrid) -> tuple[SubCell, ...]:
+    """Where the robots start: ``--starts``, or free sub-cells drawn from ``--seed``."""
+    if settings.starts:
+        starts = parse_starts(settings.starts)
+        if len(starts) != settings.robots:
+            raise UsageError(f"--starts gives {len(starts)} robots, -n says {settings.robots}")
+    else:
+        starts = random_starts(grid, settings.robots, settings.seed,
+                               one_per_cell=algorithm(settings.algo).one_robot_per_cell)
+    validate_starts(grid, coarsen(grid), starts)
+    return starts
+
+
+def offline_plan(settings: UpSettings, grid: OccupancyGrid, starts: tuple[SubCell, ...]) -> Plan:
+    """The plan of an offline algorithm from these starts, as ``mstc up`` makes it."""
+    area = work_area(grid, starts)
+    tree = build_tree(area.cells, settings.tree, seed=settings.seed,
+                      starts=[cell_of(start) for start in starts])
+    plan_for = algorithm(settings.algo).load_plan()
+    return plan_for(area, tree, settings.algo, settings.seed)
+
+
 @dataclass(frozen=True)
 class MissionSetup:
     """The mission as the launcher plans it before starting anything."""
@@ -183,14 +205,7 @@ class MissionSetup:
     def plan(cls, settings: UpSettings) -> MissionSetup:
         """Load the map, place the robots and plan (PlannerError for user mistakes)."""
         grid = resolve_world(settings.world, settings.cell_size)
-        if settings.starts:
-            starts = parse_starts(settings.starts)
-            if len(starts) != settings.robots:
-                raise UsageError(f"--starts gives {len(starts)} robots, -n says {settings.robots}")
-        else:
-            starts = random_starts(grid, settings.robots, settings.seed,
-                                   one_per_cell=algorithm(settings.algo).one_robot_per_cell)
-        validate_starts(grid, coarsen(grid), starts)
+        starts = mission_starts(settings, grid)
         if algorithm(settings.algo).family is Family.ONLINE:
             # An on-line algorithm plans nothing (its agents get no map); its lockstep
             # simulator's coverage time on the same world and starts stands in for the planned
@@ -199,11 +214,7 @@ class MissionSetup:
         else:
             # The agents plan the same way (the offline agent's plan); here it gives the planned
             # makespan and rejects unplannable missions before any process starts.
-            area = work_area(grid, starts)
-            tree = build_tree(area.cells, settings.tree, seed=settings.seed,
-                              starts=[cell_of(start) for start in starts])
-            plan_for = algorithm(settings.algo).load_plan()
-            planned = plan_for(area, tree, settings.algo, settings.seed).makespan
+            planned = offline_plan(settings, grid, starts).makespan
         return cls(world=settings.world, cell_size=settings.cell_size, grid=grid,
                    starts=starts, algo=settings.algo, tree=settings.tree, seed=settings.seed,
                    time_scale=settings.time_scale, reachable=reachable_sub_cells(grid, starts),

@@ -13,6 +13,7 @@ import random
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from deploy.chaos.victims import busy_at
 from planner.algorithms import Family, algorithm, names
 
 # How a trial records a fault that came once every sub-cell was covered: it tested nothing
@@ -184,8 +185,11 @@ def make_trial(campaign: Campaign, index: int) -> Trial:
                                 round(rng.uniform(0.3, 1.5), 2)))
         messages = f"seed={seed};{LOSS_SPEC}"
     elif scenario == "late-death":  # at 20-90 % coverage, the process or its body
-        faults.append(Fault(rng.choice(COVERAGE_FAULTS), 0.0, victims[0],
-                            percent=round(rng.uniform(20.0, 90.0), 1)))
+        kind, percent = rng.choice(COVERAGE_FAULTS), round(rng.uniform(20.0, 90.0), 1)
+        # a robot with work left then, where the plan tells (deploy/chaos/victims.py)
+        busy = busy_at(world, algo, k, seed, percent) if k > 1 else ()
+        faults.append(Fault(kind, 0.0, rng.choice(busy) if busy else victims[0],
+                            percent=percent))
     if k == 1:  # the one robot must live: faults that kill it prove nothing
         faults = [f for f in faults if f.kind not in COVERAGE_FAULTS and
                   not (f.kind == "hang" and f.seconds >= DEATH_HANG_S)]
