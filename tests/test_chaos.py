@@ -131,6 +131,11 @@ def test_a_late_death_takes_a_robot_that_has_work_left_by_the_plan() -> None:
         assert fault.robot in busy, trial.describe()
         narrowed += len(busy) < trial.robots
     assert narrowed >= 3, "some plans leave robots idle by then: the draw must avoid them"
+    # a mission mstc up refuses is the trial's to record (LOST, with mstc up's message), not
+    # a traceback of the campaign's
+    (refused,) = make_trial(Campaign(worlds=("maze:5x5:1",), algos=("nb",), sizes=(200,),
+                                     scenarios=("late-death",)), 0).faults
+    assert refused.robot is not None and 0 <= refused.robot < 200
 
 
 async def test_no_fault_is_carried_out_once_the_mission_is_covered(tmp_path: Path) -> None:

@@ -15,10 +15,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from deploy.errors import UsageError
 from deploy.kill_orders import covered_for
 from deploy.monitor.coverage import reachable_sub_cells
 from deploy.settings import UpSettings, mission_starts, offline_plan
 from planner.algorithms import Family, algorithm
+from planner.errors import PlannerError
 from planner.maps import resolve_world
 from planner.types import SubCell
 
@@ -40,12 +42,17 @@ def busy_robots(paths: Sequence[Sequence[SubCell]], count: int) -> tuple[int, ..
 def busy_at(world: str, algo: str, robots: int, seed: int, percent: float) -> tuple[int, ...]:
     """The robots of ``mstc up -n robots --world world --algo algo --seed seed`` with work
     left when ``percent`` of the reachable sub-cells are covered, by the plan's lockstep
-    replay; () for an on-line algorithm."""
+    replay; () for an on-line algorithm or a mission ``mstc up`` would refuse."""
     if algorithm(algo).family is Family.ONLINE:
         return ()
     settings = UpSettings(robots=robots, world=world, algo=algo, seed=seed)
-    grid = resolve_world(world)
-    starts = mission_starts(settings, grid)
-    plan = offline_plan(settings, grid, starts)
+    try:
+        grid = resolve_world(world)
+        starts = mission_starts(settings, grid)
+        plan = offline_plan(settings, grid, starts)
+    except (PlannerError, UsageError):
+        # `mstc up` refuses the same mission with the same message, and the trial records
+        # it: not this module's to report
+        return ()
     total = int(reachable_sub_cells(grid, starts).sum())
     return busy_robots([robot.path for robot in plan.robots], covered_for(percent, total))
