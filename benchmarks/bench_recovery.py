@@ -25,7 +25,8 @@ largest sum of the three in one run).
 
 Instances: the builtin world office with random starts from each seed, and generated
 20 x 30 coarse grids (2400 sub-cells) with 0, 60 and 120 random blocked cells (the work-area
-is the largest component), random starts; nothing is tuned on a fixed set.
+is the largest component), random starts; nothing is tuned on a fixed set. ``--worlds``
+also takes any world ``mstc up`` does (builtin or generated: ``city:64x64:3``).
 """
 
 from __future__ import annotations
@@ -60,12 +61,12 @@ def instances(worlds: list[str], k: int, seeds: int,
               first: int = 0) -> Iterator[tuple[str, WorkArea, int]]:
     for world in worlds:
         for seed in range(first, first + seeds):
-            if world == "office":
-                grid = resolve_world("office")
-                yield world, work_area(grid, random_starts(grid, k, seed)), seed
-            else:
-                obstacles = int(world.removeprefix("gen"))
+            if world.startswith("gen") and world[3:].isdigit():
+                obstacles = int(world[3:])
                 yield f"20x30 {obstacles} obst.", generated(20, 30, obstacles, k, seed), seed
+            else:  # a builtin or generated world of planner.maps, e.g. office, city:64x64:3
+                grid = resolve_world(world)
+                yield world, work_area(grid, random_starts(grid, k, seed)), seed
 
 
 def make(algo: str, area: WorkArea, seed: int) -> Plan:
@@ -179,7 +180,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--algos", default="opt,balanced")
     parser.add_argument("--worlds", default="office,gen0,gen60,gen120",
-                        help="office and/or genN (20 x 30 with N random obstacle cells)")
+                        help="genN (20 x 30 with N random obstacle cells) and/or any world "
+                             "mstc up takes (office, city:64x64:3, ...)")
     parser.add_argument("--k", type=int, default=6)
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--first-seed", type=int, default=0,

@@ -169,6 +169,36 @@ def test_each_kind_of_replan_never_lengthens_the_replan_and_shortens_some(
     assert shorter >= at_least
 
 
+@pytest.mark.slow  # about 4 s (a 12 668 sub-cell plan and two re-plans)
+def test_a_large_area_is_refined_too_and_that_shortens_its_replan() -> None:
+    """Above 12 000 sub-cells the chosen re-plan was not refined (REFINE_MAX_SUB_CELLS). On
+    city 64 x 64 (12 668 sub-cells), 30 robots at uneven progress (each 20-60 % through its
+    walk, as a fleet at time scale 0 moves) and one dead, the refinement shortens it (334 ->
+    304 moves when written), and it stays a re-plan: every uncovered sub-cell has one live
+    owner on whose route it lies, and the routes are walks."""
+    grid = resolve_world("city:64x64:3")
+    area = work_area(grid, random_starts(grid, 30, 2))
+    assert area.n > 12_000
+    plan = make("balanced", area, 2)
+    rng = random.Random(2)
+    walked = {rp.robot: int(len(rp.path) * rng.uniform(0.2, 0.6)) for rp in plan.robots}
+    covered, survivors = frozen_at(plan, walked, {rng.randrange(30)})
+    rank = plan_order(plan)
+    refined = rebalance(plan.cycle, covered, survivors, rank)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(rebalance_module, "REFINE_MAX_SUB_CELLS", 12_000)
+        unrefined_replan = rebalance(plan.cycle, covered, survivors, rank)
+    assert refined.makespan < unrefined_replan.makespan
+    alive = {s.robot for s in survivors}
+    assert set(refined.owner) == set(np.flatnonzero(~covered).tolist())
+    assert set(refined.owner.values()) <= alive and set(refined.routes) == alive
+    for index, robot in refined.owner.items():
+        assert index in refined.routes[robot]
+    at = {s.robot: s.position for s in survivors}
+    for robot, route in refined.routes.items():
+        check_path_moves([plan.cycle.at(i) for i in (at[robot], *route)])
+
+
 def masked(seed: int) -> Cycle:
     """A grid of sub-cells 40 % blocked at random (Grid only needs each free sub-cell's
     index, not a real STC cycle): walks wind, so near places can be far apart."""
