@@ -91,18 +91,25 @@ def snapshot(seed: int) -> tuple[Plan, np.ndarray, list[Survivor]]:
     return plan, covered, survivors
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_every_uncovered_sub_cell_has_one_live_owner_on_whose_route_it_lies(seed: int) -> None:
-    plan, covered, survivors = snapshot(seed)
-    replan = rebalance(plan.cycle, covered, survivors, plan_order(plan))
+def assert_a_replan(plan: Plan, covered: np.ndarray, survivors: list[Survivor],
+                    replan: Replan) -> None:
+    """Every uncovered sub-cell has one live owner on whose route it lies, and each route is
+    a walk of 4-adjacent moves from where its survivor stands."""
     alive = {s.robot for s in survivors}
     assert set(replan.owner) == set(np.flatnonzero(~covered).tolist())
     assert set(replan.owner.values()) <= alive and set(replan.routes) == alive
     for index, robot in replan.owner.items():
         assert index in replan.routes[robot]
     at = {s.robot: s.position for s in survivors}
-    for robot, route in replan.routes.items():  # a walk of 4-adjacent moves from where it is
+    for robot, route in replan.routes.items():
         check_path_moves([plan.cycle.at(i) for i in (at[robot], *route)])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_every_uncovered_sub_cell_has_one_live_owner_on_whose_route_it_lies(seed: int) -> None:
+    plan, covered, survivors = snapshot(seed)
+    assert_a_replan(plan, covered, survivors,
+                    rebalance(plan.cycle, covered, survivors, plan_order(plan)))
 
 
 def test_the_replan_depends_only_on_its_inputs() -> None:
@@ -189,14 +196,7 @@ def test_a_large_area_is_refined_too_and_that_shortens_its_replan() -> None:
         patch.setattr(rebalance_module, "REFINE_MAX_SUB_CELLS", 12_000)
         unrefined_replan = rebalance(plan.cycle, covered, survivors, rank)
     assert refined.makespan < unrefined_replan.makespan
-    alive = {s.robot for s in survivors}
-    assert set(refined.owner) == set(np.flatnonzero(~covered).tolist())
-    assert set(refined.owner.values()) <= alive and set(refined.routes) == alive
-    for index, robot in refined.owner.items():
-        assert index in refined.routes[robot]
-    at = {s.robot: s.position for s in survivors}
-    for robot, route in refined.routes.items():
-        check_path_moves([plan.cycle.at(i) for i in (at[robot], *route)])
+    assert_a_replan(plan, covered, survivors, refined)
 
 
 def masked(seed: int) -> Cycle:
