@@ -61,11 +61,11 @@ REGROW_MAX_SUB_CELLS = 12_000
 # small areas with at most MAX_TAKERS survivors every option is, the best then kept: k/2
 # deaths on office, 20 seeds, 1.178 x the ideal unrefined, 1.131 with the chosen refined,
 # 1.123 with all (docs/balanced.md). A refinement costs 0.02-0.6 s of CPU up to 12 000
-# sub-cells, at k = 6 as at k = 100; in a crowded fleet every survivor pays it at once, hence
-# the chosen one only. Above 12 000 it cost 0.5-11 s more and shortened one re-plan by 10-17 %
-# (one death at 40 %, uneven progress: city 64 x 64 k = 30 334 -> 294 moves, rooms
-# 120 x 120 k = 100 381 -> 318; docs/balanced.md), which from 13 survivors one of them
-# computes for all (agent.offline.replan.SHARE_FROM); up to the 47 000 sub-cells of item 4.
+# sub-cells, at k = 6 as at k = 100; with many survivors only the chosen one is refined.
+# Above 12 000 it cost 0.8-11 s more and shortened one re-plan by 10-17 % (one death at
+# 40 %, uneven progress: city 64 x 64 k = 30 334 -> 294 moves, rooms 120 x 120 k = 100
+# 381 -> 318; docs/balanced.md): worth it, as from 13 survivors one of them computes the
+# re-plan for all (agent.offline.replan.SHARE_FROM). Up to the 47 000 sub-cells of item 4.
 REFINE_MAX_SUB_CELLS = 50_000
 REFINE_ALL_MAX_SUB_CELLS = 3_000
 
