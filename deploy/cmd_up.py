@@ -42,6 +42,7 @@ from deploy.settings import (
     fleet_timing,
     parse_kill,
     stall_timeout,
+    with_replan_allowance,
 )
 from deploy.supervisor import run_recorded
 from planner.algorithms import Family, algorithm, choices_help, names
@@ -101,8 +102,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stall-timeout", type=positive, default=None, metavar="S",
                         help=f"fail if coverage does not grow for S wall seconds (default "
                              f"{DEFAULT_STALL_S:g} s plus the wall time of {STALL_MOVES} moves, "
-                             f"and in a crowded fleet {REPLAN_S_PER_AGENT:g} s per agent per "
-                             "core for the re-plan after a death)")
+                             f"and for the re-plan after a death {REPLAN_S_PER_AGENT:g} s per "
+                             "agent per core in a crowded fleet, and by the map's size)")
     parser.add_argument("--start-timeout", type=positive, default=None, metavar="S",
                         help="fail if the agents are not all up after S wall seconds "
                              "(default 30 + 1 per robot; crowded fleets: their paced "
@@ -185,6 +186,7 @@ def endpoint_of(settings: UpSettings) -> str:
 def run(args: argparse.Namespace) -> int:
     settings = up_settings(args)
     setup = MissionSetup.plan(settings)  # loads the map and plans: user mistakes stop here
+    settings = with_replan_allowance(settings, args.stall_timeout, int(setup.reachable.sum()))
     endpoint = endpoint_of(settings)
     started = time.monotonic()
     secured = security.prepare(args, settings.run_dir, settings.mission, settings.robots,

@@ -5,6 +5,7 @@ launcher; nothing downstream sees the argparse namespace."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import re
@@ -105,6 +106,17 @@ MOVE_SIM_S = 2.5  # forward 1.93 s plus a share of turns (docs/simhw.md)
 # traffic"), 60 and 100 robots re-plan 7-15 s after a death on an idle host; the allowance
 # stays for hosts shared with other work, where the agents, niced, yield.
 REPLAN_S_PER_AGENT = 6.0
+# The re-plan's CPU also grows with the map, and below agent.offline.replan.SHARE_FROM
+# survivors each computes it: 12 robots on city 120 x 120 (40 392 sub-cells) at time scale 40,
+# one killed at 30 %, stalled out after the default 26 s (2026-12-06). One re-plan there
+# costs a survivor 7.2 s of CPU alone (0.18 ms per sub-cell; 0.17 on 28 000 sub-cells of
+# 30 % obstacles), and the 11 survivors' re-plans took 62-67 s on the 2 cores, 0.29 ms per
+# sub-cell and survivor. So the default stall timeout also allows this much per sub-cell
+# for each survivor that computes it (at most REPLAN_COMPUTERS), shared by the cores: about
+# half as much again as that run needed, for a loaded host (111 s there, 1.1 s for the office
+# and 6 robots).
+REPLAN_S_PER_SUB_CELL = 0.5e-3
+REPLAN_COMPUTERS = 12
 
 _KILL_RE = re.compile(
     r"^(?P<robot>\d+)@(?:(?:progress=)?(?P<pct>\d+(?:\.\d+)?)%|progress=(?P<pct2>\d+(?:\.\d+)?)"
@@ -271,6 +283,23 @@ def stall_timeout(time_scale: float, given: float | None = None, robots: int = 1
     if time_scale == 0 or math.isinf(time_scale):
         return base
     return base + STALL_MOVES * MOVE_SIM_S / time_scale
+
+
+def replan_allowance(sub_cells: int, robots: int, cores: int | None = None) -> float:
+    """Seconds the survivors of ``robots`` may take to re-plan ``sub_cells`` after a death,
+    beyond what stall_timeout allows (REPLAN_S_PER_SUB_CELL)."""
+    computers = min(max(robots - 1, 0), REPLAN_COMPUTERS)
+    return REPLAN_S_PER_SUB_CELL * sub_cells * computers / _cores(cores)
+
+
+def with_replan_allowance(settings: UpSettings, given: float | None, sub_cells: int,
+                          cores: int | None = None) -> UpSettings:
+    """``settings`` with the default stall timeout lengthened by the re-plan of a map of
+    ``sub_cells`` (unchanged when --stall-timeout was ``given``)."""
+    if given is not None:
+        return settings
+    extra = replan_allowance(sub_cells, settings.robots, cores)
+    return dataclasses.replace(settings, stall_timeout=settings.stall_timeout + extra)
 
 
 def crowded(robots: int, cores: int | None = None) -> bool:

@@ -45,7 +45,16 @@ from deploy.fleet import (
 )
 from deploy.monitor.coverage import reachable_sub_cells
 from deploy.progress import PlainProgress
-from deploy.settings import KillOrder, MissionSetup, fleet_timing, parse_kill, stall_timeout
+from deploy.settings import (
+    KillOrder,
+    MissionSetup,
+    UpSettings,
+    fleet_timing,
+    parse_kill,
+    replan_allowance,
+    stall_timeout,
+    with_replan_allowance,
+)
 from deploy.summary import MissionTracker, format_summary, summarize
 from planner.digest import plan_digest
 from planner.types import OccupancyGrid
@@ -153,6 +162,24 @@ def test_a_crowded_fleets_stall_timeout_allows_for_the_survivors_replan() -> Non
     assert stall_timeout(0.0, robots=40, cores=8) == 20.0
     assert stall_timeout(1.0, robots=40, cores=2) == pytest.approx(140.0 + 100 * 2.5)
     assert stall_timeout(0.0, given=30.0, robots=100, cores=2) == 30.0
+
+
+def test_the_stall_timeout_allows_for_a_large_maps_replan_unless_given() -> None:
+    """12 robots on city 120 x 120 (40 392 sub-cells), one killed at 30 %, stalled out after
+    the default 26 s at time scale 40 while the 11 survivors each re-planned (62-67 s on
+    2 cores once the stall timeout let them)."""
+    settings = UpSettings(robots=12, world="city:120x120:1", time_scale=40.0,
+                          stall_timeout=stall_timeout(40.0, robots=12, cores=2))
+    assert settings.stall_timeout == pytest.approx(26.25)
+    longer = with_replan_allowance(settings, None, 40_392, cores=2)
+    assert longer.stall_timeout == pytest.approx(26.25 + 0.5e-3 * 40_392 * 11 / 2)
+    assert longer.stall_timeout > 67.0 * 1.5  # half as much again as the re-plans took
+    assert with_replan_allowance(settings, 26.25, 40_392, cores=2) == settings  # given: kept
+    # below the share threshold every survivor computes; from it one does, for all
+    assert replan_allowance(884, 6, cores=2) == pytest.approx(0.5e-3 * 884 * 5 / 2)
+    assert replan_allowance(884, 6, cores=2) < 1.5  # the office: nothing to notice
+    assert replan_allowance(40_392, 100, cores=2) == replan_allowance(40_392, 13, cores=2)
+    assert replan_allowance(40_392, 1, cores=2) == 0.0
 
 
 def test_crowded_fleets_get_long_liveness_timers_unless_told() -> None:
