@@ -17,6 +17,7 @@ from agent.core.config import (
     DEFAULT_BOOT_TIMEOUT,
     DEFAULT_START_TIMEOUT,
 )
+from agent.offline.replan import SHARE_FROM as REPLAN_SHARE_FROM
 from bus.config import DEFAULT_LEASE_MS
 from bus.detector import DEFAULT_HEARTBEAT_PERIOD
 from deploy.errors import UsageError
@@ -116,7 +117,7 @@ REPLAN_S_PER_AGENT = 6.0
 # half as much again as that run needed, for a loaded host (111 s there, 1.1 s for the office
 # and 6 robots).
 REPLAN_S_PER_SUB_CELL = 0.5e-3
-REPLAN_COMPUTERS = 12
+REPLAN_COMPUTERS = REPLAN_SHARE_FROM - 1  # from SHARE_FROM survivors on, one computes for all
 
 _KILL_RE = re.compile(
     r"^(?P<robot>\d+)@(?:(?:progress=)?(?P<pct>\d+(?:\.\d+)?)%|progress=(?P<pct2>\d+(?:\.\d+)?)"
