@@ -113,11 +113,11 @@ REPLAN_S_PER_AGENT = 6.0
 # costs a survivor 7.2 s of CPU alone (0.18 ms per sub-cell; 0.17 on 28 000 sub-cells of
 # 30 % obstacles), and the 11 survivors' re-plans took 62-67 s on the 2 cores, 0.29 ms per
 # sub-cell and survivor. So the default stall timeout also allows this much per sub-cell
-# for each survivor that computes it (at most REPLAN_COMPUTERS), shared by the cores: about
-# half as much again as that run needed, for a loaded host (111 s there, 1.1 s for the office
-# and 6 robots).
+# for each survivor that computes it, shared by the cores they can use: about half as much
+# again as that run needed, for a loaded host (111 s there, 1.1 s for the office and 6
+# robots). From SHARE_FROM survivors on one computes for all, on one core (a 45 420 sub-cell
+# re-plan of 99 survivors: 8.8 s of CPU; the crowd's own delays are REPLAN_S_PER_AGENT's).
 REPLAN_S_PER_SUB_CELL = 0.5e-3
-REPLAN_COMPUTERS = REPLAN_SHARE_FROM - 1  # from SHARE_FROM survivors on, one computes for all
 
 _KILL_RE = re.compile(
     r"^(?P<robot>\d+)@(?:(?:progress=)?(?P<pct>\d+(?:\.\d+)?)%|progress=(?P<pct2>\d+(?:\.\d+)?)"
@@ -289,8 +289,11 @@ def stall_timeout(time_scale: float, given: float | None = None, robots: int = 1
 def replan_allowance(sub_cells: int, robots: int, cores: int | None = None) -> float:
     """Seconds the survivors of ``robots`` may take to re-plan ``sub_cells`` after a death,
     beyond what stall_timeout allows (REPLAN_S_PER_SUB_CELL)."""
-    computers = min(max(robots - 1, 0), REPLAN_COMPUTERS)
-    return REPLAN_S_PER_SUB_CELL * sub_cells * computers / _cores(cores)
+    survivors = max(robots - 1, 0)
+    computers = survivors if survivors < REPLAN_SHARE_FROM else 1
+    if computers == 0:
+        return 0.0
+    return REPLAN_S_PER_SUB_CELL * sub_cells * computers / min(computers, _cores(cores))
 
 
 def with_replan_allowance(settings: UpSettings, given: float | None, sub_cells: int,

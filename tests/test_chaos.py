@@ -279,9 +279,9 @@ async def test_a_campaign_runs_at_most_jobs_trials_at_once_and_a_host_starver_al
     async def fake_trial(trial: Trial, workdir: Path) -> Outcome:
         running.append(trial)
         seen.append((len(running), any(campaign_module.exclusive(t) for t in running)))
-        # Long enough that the next trials are started before this one ends.
-        for _ in range(5):
-            await asyncio.sleep(0)
+        # Long enough that the next trials are started before this one ends (each is made
+        # in a thread: a late death's trial plans its mission).
+        await asyncio.sleep(0.2)
         running.remove(trial)
         return Outcome(trial, "ok", "", 0.0)
 

@@ -175,10 +175,14 @@ def test_the_stall_timeout_allows_for_a_large_maps_replan_unless_given() -> None
     assert longer.stall_timeout == pytest.approx(26.25 + 0.5e-3 * 40_392 * 11 / 2)
     assert longer.stall_timeout > 67.0 * 1.5  # half as much again as the re-plans took
     assert with_replan_allowance(settings, 26.25, 40_392, cores=2) == settings  # given: kept
-    # below the share threshold every survivor computes; from it one does, for all
     assert replan_allowance(884, 6, cores=2) == pytest.approx(0.5e-3 * 884 * 5 / 2)
     assert replan_allowance(884, 6, cores=2) < 1.5  # the office: nothing to notice
-    assert replan_allowance(40_392, 100, cores=2) == replan_allowance(40_392, 13, cores=2)
+    # from 13 survivors one computes for all, on one core whatever the host has
+    one = 0.5e-3 * 40_392
+    assert replan_allowance(40_392, 14, cores=2) == replan_allowance(40_392, 100, cores=2)
+    assert replan_allowance(40_392, 14, cores=8) == pytest.approx(one)
+    assert replan_allowance(40_392, 13, cores=8) == pytest.approx(one * 12 / 8)
+    assert replan_allowance(40_392, 3, cores=8) == pytest.approx(one)  # 2 survivors, 2 cores
     assert replan_allowance(40_392, 1, cores=2) == 0.0
 
 

@@ -69,7 +69,9 @@ async def run_campaign(campaign: Campaign, indices: Iterable[int], out: Path,
     with (out / "trials.jsonl").open("a") as jsonl:
         async with asyncio.TaskGroup() as group:
             for index in indices:
-                trial = make_trial(campaign, index)
+                # in a thread: a late death's trial plans its mission (deploy/chaos/victims.py),
+                # seconds on a large world, while the loop injects the running trials' faults
+                trial = await asyncio.to_thread(make_trial, campaign, index)
                 weight = jobs if exclusive(trial) else 1
                 async with slots:
                     await slots.wait_for(functools.partial(fits, weight))
