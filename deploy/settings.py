@@ -17,7 +17,7 @@ from agent.core.config import (
     DEFAULT_BOOT_TIMEOUT,
     DEFAULT_START_TIMEOUT,
 )
-from agent.offline.replan import SHARE_FROM as REPLAN_SHARE_FROM
+from agent.offline.replan import shares_replan
 from bus.config import DEFAULT_LEASE_MS
 from bus.detector import DEFAULT_HEARTBEAT_PERIOD
 from deploy.errors import UsageError
@@ -107,16 +107,17 @@ MOVE_SIM_S = 2.5  # forward 1.93 s plus a share of turns (docs/simhw.md)
 # traffic"), 60 and 100 robots re-plan 7-15 s after a death on an idle host; the allowance
 # stays for hosts shared with other work, where the agents, niced, yield.
 REPLAN_S_PER_AGENT = 6.0
-# The re-plan's CPU also grows with the map, and below agent.offline.replan.SHARE_FROM
-# survivors each computes it: 12 robots on city 120 x 120 (40 392 sub-cells) at time scale 40,
-# one killed at 30 %, stalled out after the default 26 s (2026-12-06). One re-plan there
-# costs a survivor 7.2 s of CPU alone (0.18 ms per sub-cell; 0.17 on 28 000 sub-cells of
-# 30 % obstacles), and the 11 survivors' re-plans took 62-67 s on the 2 cores, 0.29 ms per
-# sub-cell and survivor. So the default stall timeout also allows this much per sub-cell
-# for each survivor that computes it, shared by the cores they can use: about half as much
-# again as that run needed, for a loaded host (111 s there, 1.1 s for the office and 6
-# robots). From SHARE_FROM survivors on one computes for all, on one core (a 45 420 sub-cell
-# re-plan of 99 survivors: 8.8 s of CPU; the crowd's own delays are REPLAN_S_PER_AGENT's).
+# The re-plan's CPU also grows with the map, and unless one computes it for all
+# (agent.offline.replan.shares_replan) each survivor computes it: 12 robots on city
+# 120 x 120 (40 392 sub-cells) at time scale 40, one killed at 30 %, stalled out after the
+# default 26 s (2026-12-06), when each of the 11 survivors still computed it. One re-plan
+# there costs a survivor 7.2 s of CPU alone (0.18 ms per sub-cell; 0.17 on 28 000 sub-cells
+# of 30 % obstacles), and the 11 survivors' re-plans took 62-67 s on the 2 cores, 0.29 ms
+# per sub-cell and survivor. So the default stall timeout also allows this much per
+# sub-cell for each survivor that computes it, shared by the cores they can use: about half
+# as much again as that run needed, for a loaded host (1.1 s for the office and 6 robots).
+# Where one computes for all, it does so on one core (a 45 420 sub-cell re-plan of 99
+# survivors: 8.8 s of CPU; the crowd's own delays are REPLAN_S_PER_AGENT's): 20 s there.
 REPLAN_S_PER_SUB_CELL = 0.5e-3
 
 _KILL_RE = re.compile(
@@ -290,7 +291,7 @@ def replan_allowance(sub_cells: int, robots: int, cores: int | None = None) -> f
     """Seconds the survivors of ``robots`` may take to re-plan ``sub_cells`` after a death,
     beyond what stall_timeout allows (REPLAN_S_PER_SUB_CELL)."""
     survivors = max(robots - 1, 0)
-    computers = survivors if survivors < REPLAN_SHARE_FROM else 1
+    computers = 1 if shares_replan(survivors, sub_cells) else survivors
     if computers == 0:
         return 0.0
     return REPLAN_S_PER_SUB_CELL * sub_cells * computers / min(computers, _cores(cores))

@@ -13,10 +13,17 @@ import numpy as np
 import pytest
 
 from agent.offline import apart as apart_module
+from agent.offline import replan as replan_module
 from agent.offline import runner as runner_module
 from agent.offline.driver import next_in_turn
 from agent.offline.plan import compute_plan
-from agent.offline.replan import ReplanBoard, ReplanInputs, share_wait
+from agent.offline.replan import (
+    SHARE_FROM,
+    ReplanBoard,
+    ReplanInputs,
+    share_wait,
+    shares_replan,
+)
 from agent.offline.runner import OfflineRunner
 from bus import keys
 from bus.drops import DropCounter
@@ -80,6 +87,26 @@ def test_the_lowest_survivor_shares_and_only_a_crowd_shares() -> None:
     assert _board(plan, share_from=3).sharer((0, 1)) is None  # two survivors: each computes
     assert _board(plan, share_from=2).sharer((0, 1)) == 2
     assert _board(plan, share_from=4).sharer(DEAD) is None
+
+
+def test_on_a_large_map_fewer_survivors_share_the_replan(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """11 survivors of 12 on 40 392 sub-cells each computed a 7.2 s re-plan on 2 cores: 84-90
+    s, five of them declared dead meanwhile. A survivor weighs once per 4 000 sub-cells."""
+    assert not shares_replan(12, 884) and shares_replan(13, 884)  # the office: a crowd only
+    assert not shares_replan(12, 4_000) and shares_replan(13, 4_000)
+    assert shares_replan(11, 40_392) and shares_replan(3, 40_392)
+    assert not shares_replan(2, 40_392)  # two computations: the wall time of one, on 2 cores
+    assert not shares_replan(4, 12_668) and shares_replan(5, 12_668)
+    assert shares_replan(2, 884, share_from=2)  # told so: shares whatever the map
+    assert shares_replan(20, 40_392, share_from=100)
+    assert not shares_replan(20, 4_000, share_from=100)
+    plan = _plan()
+    assert plan.cycle.n < 4_000 and _board(plan, share_from=SHARE_FROM).sharer(DEAD) is None
+    # three survivors of a map ten times the office's (in weight): the lowest computes
+    monkeypatch.setattr(replan_module, "SHARE_SUB_CELLS", plan.cycle.n // 10)
+    assert _board(plan, share_from=SHARE_FROM).sharer(DEAD) == 0
+    assert _board(plan, share_from=SHARE_FROM).sharer((0, 1)) is None  # two: each computes
 
 
 def test_a_share_made_from_the_same_reports_is_used_as_made() -> None:
@@ -218,6 +245,32 @@ async def test_a_sharer_that_cannot_start_a_process_computes_in_a_thread(
     assert made is not None and made[1].startswith(
         ", shared with the fleet (computed in a thread: no process for it:")
     assert solves.count == 1 and len(announced) == 1
+
+
+async def test_a_survivor_computing_a_large_maps_replan_for_itself_does_it_apart(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """In a thread such a re-plan held the interpreter lock for seconds: the agent's Zenoh
+    threads fell behind and its peers declared it dead (12 robots, 40 392 sub-cells)."""
+    plan = _plan()
+    solves = _Solves(monkeypatch)
+    board = _board(plan, share_from=99)  # each survivor computes
+    inputs = board.inputs(DEAD)
+    replan = rebalance(inputs.cycle, inputs.covered, inputs.survivors, inputs.rank)
+    got = await _runner(plan, board, 2, [])._replan_of(inputs)
+    assert got is not None and got[1] == "" and dict(got[0]) == replan.routes
+    assert solves.count == 1  # a small map: in a thread here
+    monkeypatch.setattr(replan_module, "APART_FROM_SUB_CELLS", plan.cycle.n)
+    got = await _runner(plan, board, 2, [])._replan_of(inputs)
+    assert got is not None and got[1] == "" and dict(got[0]) == replan.routes
+    assert solves.count == 1  # in a process of its own: nothing here
+
+    def no_process(*args: Any, **kwargs: Any) -> Any:
+        raise OSError(38, "Function not implemented")
+
+    monkeypatch.setattr(apart_module, "ProcessPoolExecutor", no_process)
+    got = await _runner(plan, board, 2, [])._replan_of(inputs)
+    assert got is not None and got[1].startswith(" (computed in a thread: no process for it:")
+    assert solves.count == 2 and dict(got[0]) == replan.routes
 
 
 async def test_a_share_that_does_not_come_is_computed_after_the_wait(

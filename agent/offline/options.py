@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from agent.core.errors import ConfigError
 from agent.offline.planshare import SHARE_FROM as PLAN_SHARE_FROM
-from agent.offline.replan import SHARE_FROM
+from agent.offline.replan import SHARE_FROM, SHARE_MIN_SURVIVORS, SHARE_SUB_CELLS
 from bus.argtypes import positive_int
 from planner.algorithms import Family, names
 from planner.offline.rebalance import DEFAULT_RECOVERY, RECOVERIES, Recovery
@@ -48,7 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="with --recovery rebalance, from N survivors on only the lowest "
                             "computes a re-plan and shares it; the others check it against "
                             "their own reports and walk it (computing it themselves if it "
-                            f"does not come) (default {SHARE_FROM})")
+                            "does not come). On a large map a survivor counts once per "
+                            f"{SHARE_SUB_CELLS} sub-cells, from {SHARE_MIN_SURVIVORS} survivors "
+                            f"(default {SHARE_FROM})")
     group.add_argument("--plan-share-from", type=positive_int, default=PLAN_SHARE_FROM,
                        metavar="N",
                        help="from N participants on only the lowest computes the first plan "

@@ -27,7 +27,14 @@ from agent.core.errors import HardwareError
 from agent.offline.bodies import Bodies
 from agent.offline.hardware import Hardware
 from agent.offline.peers import PeerTable
-from agent.offline.replan import ReplanBoard, ReplanInputs, Routes, routes_apart, share_wait
+from agent.offline.replan import (
+    ReplanBoard,
+    ReplanInputs,
+    Routes,
+    computed_apart_from,
+    routes_apart,
+    share_wait,
+)
 from bus import keys
 from bus.bridge import Bus
 from bus.messages import (
@@ -285,16 +292,9 @@ class OfflineRunner:
         assert self.board is not None and self._announce is not None
         sharer = self.board.sharer(inputs.dead)
         if sharer is None:
-            return await self._solve(inputs), ""
+            return await self._solve(inputs)
         if sharer == self.robot:
-            routes: Routes
-            try:
-                routes, where = await routes_apart(inputs)
-            except (OSError, BrokenProcessPool) as error:
-                # no process to be had (no /dev/shm for its locks, a worker killed): the
-                # same re-plan in a thread, later in a crowd, and the event says so
-                routes = await self._solve(inputs)
-                where = f" (computed in a thread: no process for it: {error})"
+            routes, where = await self._solve(inputs, apart=True)
             share = ReplanShare(self.robot, self.incarnation, inputs.dead, inputs.digest,
                                 tuple(routes), tuple(len(r) for r in routes.values()),
                                 pack_routes(list(routes.values())))
@@ -308,11 +308,11 @@ class OfflineRunner:
             if shared is not None and not shared.problem:
                 return shared.routes, f", shared by robot {shared.sender}"
             if shared is not None:
-                return (await self._solve(inputs),
-                        f", computed here: robot {sharer}'s {shared.problem}")
+                routes, where = await self._solve(inputs)
+                return routes, f", computed here: robot {sharer}'s {shared.problem}{where}"
             if time.monotonic() >= deadline:
-                return (await self._solve(inputs),
-                        f", computed here: robot {sharer}'s not heard in {wait:.0f} s")
+                routes, where = await self._solve(inputs)
+                return routes, f", computed here: robot {sharer}'s not heard in {wait:.0f} s{where}"
             # The sharer re-announces its share every period; the backstop for a lost one
             # asks the sharer alone: 59 survivors pulling every robot's state while they
             # waited kept the sharer answering their queries instead of computing.
@@ -323,11 +323,25 @@ class OfflineRunner:
             await self.peers.wait_news(self._refresh_period)
         return None
 
-    async def _solve(self, inputs: ReplanInputs) -> Routes:
-        # Off the loop: at 100 robots a re-plan is a second or more of CPU, and a blocked
-        # loop sends no heartbeats (under load, peers declared robots that were re-planning
-        # dead: chaos campaign of 2026-12-02, trial 41).
-        return await asyncio.to_thread(inputs.routes)
+    async def _solve(self, inputs: ReplanInputs, *, apart: bool | None = None
+                     ) -> tuple[Routes, str]:
+        """The re-plan's routes, computed here off the loop, and a note for the event when
+        it was not where it should have been. In a process of its own when ``apart`` (by
+        default for a large map, agent.offline.replan.computed_apart_from), else in a
+        thread: at 100 robots a re-plan is a second or more of CPU, and a blocked loop sends
+        no heartbeats (under load, peers declared robots that were re-planning dead: chaos
+        campaign of 2026-12-02, trial 41)."""
+        if apart is None:
+            apart = computed_apart_from(inputs.cycle.n)
+        where = ""
+        if apart:
+            try:
+                return (await routes_apart(inputs))[0], ""
+            except (OSError, BrokenProcessPool) as error:
+                # no process to be had (no /dev/shm for its locks, a worker killed): the
+                # same re-plan in a thread, later in a crowd, and the event says so
+                where = f" (computed in a thread: no process for it: {error})"
+        return await asyncio.to_thread(inputs.routes), where
 
     async def _move(self, action: MoveTo) -> None:
         await self.hardware.step_to(action.sub)
