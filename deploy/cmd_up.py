@@ -42,7 +42,7 @@ from deploy.settings import (
     fleet_timing,
     parse_kill,
     stall_timeout,
-    with_replan_allowance,
+    with_allowances,
 )
 from deploy.supervisor import run_recorded
 from planner.algorithms import Family, algorithm, choices_help, names
@@ -186,7 +186,7 @@ def endpoint_of(settings: UpSettings) -> str:
 def run(args: argparse.Namespace) -> int:
     settings = up_settings(args)
     setup = MissionSetup.plan(settings)  # loads the map and plans: user mistakes stop here
-    settings = with_replan_allowance(settings, args.stall_timeout, int(setup.reachable.sum()))
+    settings = with_allowances(settings, args.stall_timeout, setup)
     endpoint = endpoint_of(settings)
     started = time.monotonic()
     secured = security.prepare(args, settings.run_dir, settings.mission, settings.robots,

@@ -47,6 +47,9 @@ TICK_S = 0.1
 # How often a paced start-up says how far it is: at 100 robots on 2 cores it lasts about a
 # minute, before the first coverage line (docs/operations.md, "Fleet scale").
 START_LINE_S = 5.0
+# A plan at least this long (CPU seconds, the launcher's own) is named in the "fleet up" line:
+# the agents spend as long before their first move, and the view would look stuck.
+LONG_PLAN_S = 2.0
 # Agent exit codes (agent/main.py): 0 done or left, 4 fenced; anything else is a failure.
 AGENT_DONE, AGENT_FENCED = 0, 4
 
@@ -143,8 +146,11 @@ class Launcher:
             if self.settings.booting:
                 self.write_fleet()  # a paced start lasts: mstc down must see who runs
         self.write_fleet()
+        # a plan that took the launcher long takes the agents as long before their first move
+        planned = (f", planned here in {s.plan_cpu_s:.0f} s (the agents plan it again)"
+                   if s.plan_cpu_s >= LONG_PLAN_S else "")
         self.view.event(f"fleet up: mission {self.mission}, {s.k} agents, world {s.world}, "
-                        f"algo {s.algo}, run dir {self.run_dir.path}")
+                        f"algo {s.algo}, run dir {self.run_dir.path}{planned}")
 
     def _booting(self) -> int:
         """Agents started that have neither been heard nor exited."""
@@ -294,7 +300,8 @@ class Launcher:
                     return Outcome(0, "every reachable free sub-cell was covered")
             elif self._all_stopped():
                 return Outcome(1, "every agent has stopped; " + self._uncovered())
-            elif started is not None and now - t.last_progress > s.stall_timeout:
+            elif started is not None and now - t.last_progress > s.stall_timeout + (
+                    s.plan_allowance if t.covered <= initial else 0.0):
                 return Outcome(1, self._stall_diagnosis(now - t.last_progress))
             self._flush_log()
             self.view.update(t, now - self.t0)

@@ -9,6 +9,7 @@ import dataclasses
 import math
 import os
 import re
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,8 @@ from agent.core.config import (
     DEFAULT_BOOT_TIMEOUT,
     DEFAULT_START_TIMEOUT,
 )
+from agent.offline.apart import shared_by_one
+from agent.offline.planshare import SHARE_FROM as PLAN_SHARE_FROM
 from agent.offline.replan import shares_replan
 from bus.config import DEFAULT_LEASE_MS
 from bus.detector import DEFAULT_HEARTBEAT_PERIOD
@@ -119,6 +122,12 @@ REPLAN_S_PER_AGENT = 6.0
 # Where one computes for all, it does so on one core (a 45 420 sub-cell re-plan of 99
 # survivors: 8.8 s of CPU; the crowd's own delays are REPLAN_S_PER_AGENT's): 20 s there.
 REPLAN_S_PER_SUB_CELL = 0.5e-3
+# Nothing is covered while the agents make their first plan: rooms:120x120:1 with 20
+# balanced robots planned for 30 s or more (the launcher's own plan, the same one, took
+# 30 s of CPU), and the default stall timeout (26 s) failed such missions before a move.
+# Until the first move it also allows this many times the launcher's plan per agent that
+# computes it, shared by the cores: a loaded host, the agents' process starts.
+PLAN_SLACK = 3.0
 
 _KILL_RE = re.compile(
     r"^(?P<robot>\d+)@(?:(?:progress=)?(?P<pct>\d+(?:\.\d+)?)%|progress=(?P<pct2>\d+(?:\.\d+)?)"
@@ -210,6 +219,7 @@ class MissionSetup:
     time_scale: float
     reachable: BoolArray
     planned_makespan: int
+    plan_cpu_s: float = 0.0  # CPU seconds the plan took here (the agents plan it again)
 
     @property
     def k(self) -> int:
@@ -220,6 +230,7 @@ class MissionSetup:
         """Load the map, place the robots and plan (PlannerError for user mistakes)."""
         grid = resolve_world(settings.world, settings.cell_size)
         starts = mission_starts(settings, grid)
+        began = time.process_time()
         if algorithm(settings.algo).family is Family.ONLINE:
             # An on-line algorithm plans nothing (its agents get no map); its lockstep
             # simulator's coverage time on the same world and starts stands in for the planned
@@ -232,7 +243,7 @@ class MissionSetup:
         return cls(world=settings.world, cell_size=settings.cell_size, grid=grid,
                    starts=starts, algo=settings.algo, tree=settings.tree, seed=settings.seed,
                    time_scale=settings.time_scale, reachable=reachable_sub_cells(grid, starts),
-                   planned_makespan=planned)
+                   planned_makespan=planned, plan_cpu_s=time.process_time() - began)
 
 
 @dataclass(frozen=True)
@@ -256,6 +267,7 @@ class UpSettings:
     lease_ms: int = DEFAULT_LEASE_MS
     dead_after: float = DEFAULT_DEAD_AFTER_S
     stall_timeout: float = DEFAULT_STALL_S
+    plan_allowance: float = 0.0  # more stall timeout until the first move (plan_allowance)
     start_timeout: float = 30.0
     linger: float = 3.0
     timing_args: tuple[str, ...] = ()  # FleetTiming.agent_args(), before agent_args
@@ -305,6 +317,29 @@ def with_replan_allowance(settings: UpSettings, given: float | None, sub_cells: 
         return settings
     extra = replan_allowance(sub_cells, settings.robots, cores)
     return dataclasses.replace(settings, stall_timeout=settings.stall_timeout + extra)
+
+
+def plan_allowance(plan_cpu_s: float, sub_cells: int, robots: int,
+                   cores: int | None = None) -> float:
+    """Seconds the agents' first plan may add to the stall timeout before the first move:
+    PLAN_SLACK times the launcher's own plan (the same plan) for each agent that computes
+    it (one, where one computes it for all: agent.offline.apart.shared_by_one), shared by
+    the cores they can use."""
+    computers = 1 if shared_by_one(robots, sub_cells, PLAN_SHARE_FROM) else max(robots, 1)
+    return PLAN_SLACK * plan_cpu_s * computers / min(computers, _cores(cores))
+
+
+def with_allowances(settings: UpSettings, given: float | None, setup: MissionSetup,
+                    cores: int | None = None) -> UpSettings:
+    """``settings`` with the default stall timeout lengthened by the re-plan of the map
+    (with_replan_allowance) and, until the first move, by the agents' first plan
+    (plan_allowance); unchanged when --stall-timeout was ``given``."""
+    if given is not None:
+        return settings
+    sub_cells = int(setup.reachable.sum())
+    settings = with_replan_allowance(settings, given, sub_cells, cores)
+    return dataclasses.replace(settings, plan_allowance=plan_allowance(
+        setup.plan_cpu_s, sub_cells, settings.robots, cores))
 
 
 def crowded(robots: int, cores: int | None = None) -> bool:

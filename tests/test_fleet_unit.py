@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import io
 import math
 import signal
@@ -51,8 +52,10 @@ from deploy.settings import (
     UpSettings,
     fleet_timing,
     parse_kill,
+    plan_allowance,
     replan_allowance,
     stall_timeout,
+    with_allowances,
     with_replan_allowance,
 )
 from deploy.summary import MissionTracker, format_summary, summarize
@@ -188,6 +191,25 @@ def test_the_stall_timeout_allows_for_a_large_maps_replan_unless_given() -> None
     assert replan_allowance(40_392, 3, cores=2) == pytest.approx(one)  # 2 survivors, 2 cores
     assert replan_allowance(40_392, 3, cores=1) == pytest.approx(2 * one)
     assert replan_allowance(40_392, 1, cores=2) == 0.0
+
+
+def test_the_first_plans_allowance_follows_who_computes_it() -> None:
+    # a large map: one agent computes it for all (from 3), on one core
+    assert plan_allowance(30.0, 45_420, 20, cores=2) == pytest.approx(3 * 30.0)
+    assert plan_allowance(30.0, 45_420, 2, cores=2) == pytest.approx(3 * 30.0)  # side by side
+    assert plan_allowance(30.0, 45_420, 2, cores=1) == pytest.approx(2 * 3 * 30.0)
+    # the office: every agent computes it, on the cores there are
+    assert plan_allowance(0.2, 884, 6, cores=2) == pytest.approx(3 * 0.2 * 6 / 2)
+    parser = argparse.ArgumentParser()
+    cmd_up.add_arguments(parser)
+    office = MissionSetup.plan(cmd_up.up_settings(parser.parse_args(["-n", "6"])))
+    assert office.plan_cpu_s > 0 and int(office.reachable.sum()) == 884
+    setup = dataclasses.replace(office, plan_cpu_s=2.0)
+    settings = UpSettings(robots=6, world="office", stall_timeout=26.25)
+    longer = with_allowances(settings, None, setup, cores=2)
+    assert longer.plan_allowance == pytest.approx(plan_allowance(2.0, 884, 6, cores=2))
+    assert longer.stall_timeout > settings.stall_timeout  # and the re-plan's
+    assert with_allowances(settings, 30.0, setup, cores=2) == settings  # given: kept
 
 
 def test_crowded_fleets_get_long_liveness_timers_unless_told() -> None:

@@ -90,3 +90,44 @@ def test_a_mission_simhw_saw_uncovered_fails_with_what_is_left(tmp_path: Path,
     # simhw's count, not the launcher's: 4 of 16 left, whatever was heard before
     assert outcome.message.startswith("every agent has stopped; 4 reachable sub-cells "
                                       "uncovered"), outcome.message
+
+
+def _stall(tmp_path: Path, plan_allowance: float, moved: bool) -> tuple[Outcome, float]:
+    """A running agent that covers nothing: (the outcome, seconds it took)."""
+    setup = MissionSetup(world="office", cell_size=None, grid=resolve_world("office"),
+                         starts=((0, 0),), algo="opt", tree="dfs", seed=0, time_scale=0.0,
+                         reachable=np.ones(SHAPE, dtype=bool), planned_makespan=1)
+    settings = UpSettings(robots=1, world="office", run_dir=tmp_path, linger=0.0,
+                          mission="stall", stall_timeout=0.3, plan_allowance=plan_allowance)
+    launcher = Launcher(setup, settings, "tcp/127.0.0.1:1", RunDir(tmp_path).create(),
+                        Silent())
+    launcher.agents.append(StoppedAgent("agent-0", 0, returncode=None))  # type: ignore
+    launcher.tracker.heard.add(0)
+
+    async def watched() -> Outcome:
+        task = asyncio.create_task(launcher.watch(World(covered=0)))  # type: ignore[arg-type]
+        if moved:  # the first move once the mission started: planning is over
+            await asyncio.sleep(0.05)
+            launcher.tracker.on_cover(CoverEvent(robot=0, cell=(0, 0), sim_time=0.0, visits=1),
+                                      asyncio.get_running_loop().time())
+        return await task
+
+    loop_began = asyncio.new_event_loop()
+    try:
+        began = loop_began.time()
+        outcome = loop_began.run_until_complete(asyncio.wait_for(watched(), 10))
+        return outcome, loop_began.time() - began
+    finally:
+        loop_began.close()
+
+
+def test_the_first_plan_has_its_allowance_before_the_first_move_only(tmp_path: Path) -> None:
+    """rooms:120x120:1 with 20 balanced robots planned for 30 s or more and the default
+    stall timeout failed it before a move: until the first move it allows for the plan."""
+    outcome, took = _stall(tmp_path / "a", plan_allowance=1.0, moved=False)
+    assert outcome.code == 1 and "mission stalled" in outcome.message
+    assert took >= 1.3  # the stall timeout and the plan's allowance
+    outcome, took = _stall(tmp_path / "b", plan_allowance=0.0, moved=False)
+    assert outcome.code == 1 and "mission stalled" in outcome.message and took < 1.3
+    outcome, took = _stall(tmp_path / "c", plan_allowance=5.0, moved=True)
+    assert outcome.code == 1 and "mission stalled" in outcome.message and took < 5.0

@@ -14,6 +14,8 @@ import pytest
 from agent.offline import driver as driver_module
 from agent.offline.driver import OfflineAgent
 from agent.offline.options import OfflineOptions
+from planner.maps import resolve_world
+from planner.placement import random_starts
 
 PLAN_S = 1.0
 TICK_S = 0.05
@@ -26,13 +28,14 @@ class _Planned(Exception):
 async def test_the_event_loop_keeps_running_while_the_first_plan_is_computed(
         monkeypatch: pytest.MonkeyPatch) -> None:
     agent = OfflineAgent.__new__(OfflineAgent)  # only _mission's planning step is driven
-    agent.roster = {0: (0, 0), 1: (0, 2)}  # a small fleet: each robot computes the plan
+    agent.roster = {0: (0, 0), 1: (0, 2)}  # a small fleet on a small map: each robot plans
     agent.options = OfflineOptions(world="office")
     agent.config = SimpleNamespace(algo="opt", seed=0)  # type: ignore[assignment]
-    agent.grid = None  # type: ignore[assignment]
+    agent.grid = resolve_world("office")
+    starts = random_starts(agent.grid, 2, 0)
 
     async def gather() -> list[tuple[int, int]]:
-        return [(0, 0), (0, 2)]
+        return list(starts)
 
     def plan(*args: Any) -> None:
         time.sleep(PLAN_S)  # CPU-bound planning holds the thread it runs on

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from agent.offline import apart as apart_module
 from agent.offline import driver as driver_module
 from agent.offline.driver import OfflineAgent
 from agent.offline.options import OfflineOptions
@@ -152,6 +153,45 @@ def test_the_lowest_participant_shares_and_only_in_a_crowd() -> None:
     assert share_wait(100) > share_wait(30) >= share_wait(2) > 0
 
 
+def test_on_a_large_map_fewer_participants_share_the_first_plan_and_wait_longer() -> None:
+    """A balanced plan of rooms:120x120:1 (45 420 sub-cells) took 51 s of CPU at k = 20:
+    each of 20 participants computing it cost the fleet 17 minutes of CPU."""
+    assert sharer(list(range(20)), SHARE_FROM, 45_420) == 0
+    assert sharer([7, 5, 9], SHARE_FROM, 45_420) == 5
+    assert sharer([7, 5], SHARE_FROM, 45_420) is None  # two: each computes, side by side
+    assert sharer(list(range(20)), SHARE_FROM, 884) is None  # the office: a crowd only
+    assert share_wait(3, 45_420) > 100 and share_wait(3, 884) == share_wait(3)
+
+
+async def test_a_large_maps_plan_is_computed_apart_where_each_computes_it(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    fleet = _Fleet(4, None)
+    fleet.agent.options = OfflineOptions(world="office", plan_share_from=99)  # each computes
+    apart: list[Any] = []
+    real = driver_module.computed_apart
+
+    async def recorded(work: Any, *args: Any) -> Any:
+        apart.append(work)
+        return await real(work, *args)
+
+    monkeypatch.setattr(driver_module, "computed_apart", recorded)
+    plan, how = await fleet.agent._first_plan(list(fleet.starts))
+    assert how == "" and apart == []  # the office: in a thread
+    monkeypatch.setattr(apart_module, "APART_FROM_SUB_CELLS", 1)
+    again, how = await fleet.agent._first_plan(list(fleet.starts))
+    # in a process of its own that leads its own session (no note), the same plan
+    assert how == "" and apart == [fleet_plan] and plan_digest(again) == plan_digest(plan)
+
+
+async def test_a_fleet_on_a_large_map_shares_its_first_plan(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    fleet = _Fleet(0, None)
+    fleet.agent.options = OfflineOptions(world="office")  # 6 participants: no crowd
+    monkeypatch.setattr(apart_module, "SHARE_SUB_CELLS", 100)  # the office weighs 8 each
+    plan, how = await fleet.agent._first_plan(list(fleet.starts))
+    assert how == ", shared with the fleet" and len(fleet.announced) == 1
+
+
 class _Fleet:
     """Just enough of an offline agent to drive its first plan (OfflineAgent._first_plan)
     without processes: robot ``robot`` of participants 0-5 on office, sharing from 2."""
@@ -239,7 +279,7 @@ async def test_without_a_usable_share_a_robot_computes_the_plan_itself(
         trouble: str, monkeypatch: pytest.MonkeyPatch) -> None:
     fleet = _Fleet(4, monkeypatch)
     share = fleet.share()
-    monkeypatch.setattr(driver_module, "share_wait", lambda robots: 0.2)
+    monkeypatch.setattr(driver_module, "share_wait", lambda robots, sub_cells=0: 0.2)
     if trouble == "unusable":
         fleet.agent._on_plan_share(keys.plan_share("m", 0),
                                    dataclasses.replace(share, lengths=share.lengths[1:]))

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 from agent.offline import apart as apart_module
-from agent.offline import replan as replan_module
 from agent.offline import runner as runner_module
 from agent.offline.driver import next_in_turn
 from agent.offline.plan import compute_plan
@@ -104,7 +103,7 @@ def test_on_a_large_map_fewer_survivors_share_the_replan(
     plan = _plan()
     assert plan.cycle.n < 4_000 and _board(plan, share_from=SHARE_FROM).sharer(DEAD) is None
     # three survivors of a map ten times the office's (in weight): the lowest computes
-    monkeypatch.setattr(replan_module, "SHARE_SUB_CELLS", plan.cycle.n // 10)
+    monkeypatch.setattr(apart_module, "SHARE_SUB_CELLS", plan.cycle.n // 10)
     assert _board(plan, share_from=SHARE_FROM).sharer(DEAD) == 0
     assert _board(plan, share_from=SHARE_FROM).sharer((0, 1)) is None  # two: each computes
 
@@ -259,7 +258,7 @@ async def test_a_survivor_computing_a_large_maps_replan_for_itself_does_it_apart
     got = await _runner(plan, board, 2, [])._replan_of(inputs)
     assert got is not None and got[1] == "" and dict(got[0]) == replan.routes
     assert solves.count == 1  # a small map: in a thread here
-    monkeypatch.setattr(replan_module, "APART_FROM_SUB_CELLS", plan.cycle.n)
+    monkeypatch.setattr(apart_module, "APART_FROM_SUB_CELLS", plan.cycle.n)
     got = await _runner(plan, board, 2, [])._replan_of(inputs)
     assert got is not None and got[1] == "" and dict(got[0]) == replan.routes
     assert solves.count == 1  # in a process of its own: nothing here
@@ -277,7 +276,7 @@ async def test_a_share_that_does_not_come_is_computed_after_the_wait(
         monkeypatch: pytest.MonkeyPatch) -> None:
     plan = _plan()
     solves = _Solves(monkeypatch)
-    monkeypatch.setattr(runner_module, "share_wait", lambda survivors: 0.2)
+    monkeypatch.setattr(runner_module, "share_wait", lambda survivors, sub_cells=0: 0.2)
     board = _board(plan)
     other = _runner(plan, board, 2, [])
     loop = asyncio.get_running_loop()

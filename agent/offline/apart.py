@@ -19,6 +19,35 @@ from typing import Any, TypeVar
 
 T = TypeVar("T")
 
+# Who computes a plan or re-plan of a crowded fleet, and where. A fleet of ``share_from``
+# participants (or survivors) has one compute it for all; on a large map one computation
+# weighs as much as several: a participant counts once per SHARE_SUB_CELLS sub-cells (at
+# least once), from SHARE_MIN of them (on 2 cores two computations cost the wall time of
+# one, and a share adds a process start and a message). A re-plan costs 0.18 ms of CPU
+# per sub-cell (7.2 s on 40 392), a balanced first plan 0.9-50 s there at k = 12-25.
+SHARE_SUB_CELLS = 4_000
+SHARE_MIN = 3
+# A computation over at least this many sub-cells runs in a process of its own even where
+# each robot computes it for itself: in a thread it holds the interpreter lock for seconds,
+# and the agent's Zenoh threads, which need it to hand over every sample, fall behind
+# (peers saw the robot's heartbeats stop or its liveliness token lapse). Below, the process
+# start (0.5-1 s of CPU for the planner's imports) costs more than it spares.
+APART_FROM_SUB_CELLS = 8_000
+
+
+def shared_by_one(computers: int, sub_cells: int, share_from: int) -> bool:
+    """Whether one of ``computers`` robots computes for all a plan or re-plan over
+    ``sub_cells`` (from ``share_from`` of them, each weighing once per SHARE_SUB_CELLS)."""
+    if computers >= share_from:
+        return True
+    weight = max(1.0, sub_cells / SHARE_SUB_CELLS)
+    return computers >= SHARE_MIN and computers * weight >= share_from
+
+
+def apart_from(sub_cells: int) -> bool:
+    """Whether a computation over ``sub_cells`` runs in a process of its own."""
+    return sub_cells >= APART_FROM_SUB_CELLS
+
 # In a worker: why it could not lead a session of its own ("" when it does).
 _session_note = ""
 

@@ -25,7 +25,7 @@ from agent.core.errors import AgentError, DigestMismatchError, MissionFailedErro
 from agent.core.gather import BodyAgent
 from agent.core.hw_link import HwLink
 from agent.core.lifecycle import run_agent
-from agent.offline.apart import computed_apart
+from agent.offline.apart import apart_from, computed_apart
 from agent.offline.bodies import Bodies
 from agent.offline.hardware import Hardware
 from agent.offline.options import OfflineOptions
@@ -298,17 +298,21 @@ class OfflineAgent(BodyAgent):
         """The participants' plan and how it was had (for the log): computed here, or in a
         crowd computed by the lowest participant and shared (agent.offline.planshare)."""
         ids = self.participants()
-        first = sharer(ids, self.options.plan_share_from)
+        sub_cells = work_area(self.grid, starts).n
+        first = sharer(ids, self.options.plan_share_from, sub_cells)
         if first is None:
             # off the loop, as a re-plan is (agent/offline/runner.py): a balanced plan took
             # 3.4 s on a host busy with three chaos trials, no heartbeat went out meanwhile,
-            # and a peer declared this robot dead (chaos seed 63, trial 71)
+            # and a peer declared this robot dead (chaos seed 63, trial 71); on a large
+            # map in a process of its own (agent.offline.apart.apart_from)
+            if apart_from(sub_cells):
+                return await self._plan_apart(starts)
             return await asyncio.to_thread(fleet_plan, *self._plan_args(starts)), ""
         inputs = plan_inputs(self.grid, ids, starts, self.config.algo, self.options.tree,
                              self.config.seed)
         if first == self.robot:
             return await self._share_plan(starts, inputs)
-        wait = share_wait(len(ids))
+        wait = share_wait(len(ids), sub_cells)
         deadline = self.now() + wait
         self.phase = f"waiting for robot {first}'s plan"
         while True:
@@ -342,15 +346,19 @@ class OfflineAgent(BodyAgent):
                 await self.pull(first)
             await self.peers.wait_news(self.config.announce_period)
 
-    async def _share_plan(self, starts: list[tuple[int, int]], inputs: str
-                          ) -> tuple[Plan, str]:
-        """The sharer's side: the plan computed in a process of its own, and announced."""
+    async def _plan_apart(self, starts: list[tuple[int, int]]) -> tuple[Plan, str]:
+        """The plan computed in a process of its own, and a note when it was not."""
         try:
-            plan, where = await computed_apart(fleet_plan, *self._plan_args(starts))
+            return await computed_apart(fleet_plan, *self._plan_args(starts))
         except (OSError, BrokenProcessPool) as error:
             # no process to be had: the same plan in a thread, later in a crowd
             plan = await asyncio.to_thread(fleet_plan, *self._plan_args(starts))
-            where = f" (computed in a thread: no process for it: {error})"
+            return plan, f" (computed in a thread: no process for it: {error})"
+
+    async def _share_plan(self, starts: list[tuple[int, int]], inputs: str
+                          ) -> tuple[Plan, str]:
+        """The sharer's side: the plan computed in a process of its own, and announced."""
+        plan, where = await self._plan_apart(starts)
         share = share_of(plan, self.robot, self.incarnation, inputs)
         try:
             encode(share, max_size=self.bus.max_payload)

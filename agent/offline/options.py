@@ -7,8 +7,9 @@ import argparse
 from dataclasses import dataclass
 
 from agent.core.errors import ConfigError
+from agent.offline.apart import SHARE_MIN, SHARE_SUB_CELLS
 from agent.offline.planshare import SHARE_FROM as PLAN_SHARE_FROM
-from agent.offline.replan import SHARE_FROM, SHARE_MIN_SURVIVORS, SHARE_SUB_CELLS
+from agent.offline.replan import SHARE_FROM
 from bus.argtypes import positive_int
 from planner.algorithms import Family, names
 from planner.offline.rebalance import DEFAULT_RECOVERY, RECOVERIES, Recovery
@@ -49,7 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             "computes a re-plan and shares it; the others check it against "
                             "their own reports and walk it (computing it themselves if it "
                             "does not come). On a large map a survivor counts once per "
-                            f"{SHARE_SUB_CELLS} sub-cells, from {SHARE_MIN_SURVIVORS} survivors "
+                            f"{SHARE_SUB_CELLS} sub-cells, from {SHARE_MIN} survivors "
                             f"(default {SHARE_FROM})")
     group.add_argument("--plan-share-from", type=positive_int, default=PLAN_SHARE_FROM,
                        metavar="N",

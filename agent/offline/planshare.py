@@ -25,6 +25,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from agent.offline.apart import shared_by_one
 from bus.messages import PlanShare, join_moves, pack_moves, split_moves, unpack_moves
 from planner.algorithms import algorithm
 from planner.digest import plan_digest
@@ -41,20 +42,31 @@ SHARE_FROM = 26
 # slow sharer, as for a shared re-plan (agent.offline.replan.share_wait).
 SHARE_WAIT_MIN_S = 10.0
 SHARE_WAIT_S_PER_ROBOT = 1.0
+# ... and with the map, where a balanced plan grows fastest (rooms of 45 420 sub-cells:
+# 7.6 s of CPU at k = 12, 40 s at k = 20): too short a wait only has every robot compute
+# it after all, later; a sharer that dies is not waited for.
+SHARE_WAIT_S_PER_SUB_CELL = 3e-3
 
 
 class UnusableShareError(ValueError):
     """A shared plan that cannot be flown: the reason is the message."""
 
 
-def share_wait(robots: int) -> float:
-    """Seconds a robot waits for the plan shared in a fleet of ``robots`` participants."""
-    return max(SHARE_WAIT_MIN_S, SHARE_WAIT_S_PER_ROBOT * robots)
+def share_wait(robots: int, sub_cells: int = 0) -> float:
+    """Seconds a robot waits for the plan of a ``sub_cells`` work-area shared in a fleet of
+    ``robots`` participants."""
+    return max(SHARE_WAIT_MIN_S, SHARE_WAIT_S_PER_ROBOT * robots,
+               SHARE_WAIT_S_PER_SUB_CELL * sub_cells)
 
 
-def sharer(participants: Sequence[int], share_from: int) -> int | None:
-    """The participant that computes the plan for all, or None when each computes it."""
-    return min(participants) if len(participants) >= share_from else None
+def sharer(participants: Sequence[int], share_from: int, sub_cells: int = 0) -> int | None:
+    """The participant that computes the plan of a ``sub_cells`` work-area for all, or None
+    when each computes it (agent.offline.apart.shared_by_one: on a large map a balanced
+    plan is 7.6-122 s of CPU at k = 12-25 on rooms of 45 420 sub-cells, and every
+    participant computing it multiplied that)."""
+    return (min(participants)
+            if participants and shared_by_one(len(participants), sub_cells, share_from)
+            else None)
 
 
 def plan_inputs(grid: OccupancyGrid, participants: Sequence[int], starts: Sequence[SubCell],

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agent.offline.apart import computed_apart
+from agent.offline.apart import computed_apart, shared_by_one
 from bus import keys
 from bus.drops import DropCounter
 from bus.messages import ReplanReport, ReplanShare, unpack_covered, unpack_routes
@@ -41,23 +41,9 @@ from planner.types import BoolArray, Cycle, IntArray, Plan
 # Survivors from which one computes the re-plan for all: below, computing it is cheaper than
 # waiting for a message (0.3-0.8 s of CPU at most 12 survivors, docs/balanced.md).
 SHARE_FROM = 13
-# On a large map one survivor's re-plan weighs as much as several: one counts once per
-# SHARE_SUB_CELLS sub-cells of the plan's cycle (at least once) against ``share_from``. Its
-# CPU grows with the map (7.2 s alone on 40 392 sub-cells since planner.offline.rebalance
-# refines areas that large), and 11 survivors each computing it on 2 cores re-planned 84-90 s
-# after the death, their peers declaring five of them dead meanwhile (2026-12-06). With
-# 4 000, from 5 survivors of 12 668 sub-cells (2.3 s of CPU each) or 2 of 40 392 one
-# computes for all; the office (884) never does below SHARE_FROM.
-SHARE_SUB_CELLS = 4_000
-# Fewer survivors than this each compute the re-plan whatever the map: on 2 cores two
-# computations cost the wall time of one, and a share adds a process start and a message.
-SHARE_MIN_SURVIVORS = 3
-# A re-plan of at least this many sub-cells is computed in a process of its own even by a
-# survivor computing it for itself (routes_apart): in a thread it holds the interpreter lock
-# for seconds, and the agent's Zenoh threads, which need it to hand over every sample, fall
-# behind (peers saw the robot's heartbeats stop or its liveliness token lapse). Below, the
-# process start (0.5-1 s of CPU for the planner's imports) costs more than it spares.
-APART_FROM_SUB_CELLS = 8_000
+# On a large map fewer survivors share (agent.offline.apart.shared_by_one): 11 survivors
+# each computing a 7.2 s re-plan of 40 392 sub-cells on 2 cores re-planned 84-90 s after the
+# death, their peers declaring five of them dead meanwhile (2026-12-06).
 # How long a survivor waits for the sharer's re-plan before computing it itself. The sharer
 # computes it among the fleet's other work, which in a crowd starves it: 100 agents on 2
 # cores overload them with their own heartbeats and announcements, and the sharer took 194 s
@@ -67,29 +53,23 @@ APART_FROM_SUB_CELLS = 8_000
 # slow one, not the way a lost sharer is replaced.
 SHARE_WAIT_MIN_S = 10.0
 SHARE_WAIT_S_PER_SURVIVOR = 3.0
+# ... and with the map: 7.2 s of CPU alone on 40 392 sub-cells (a third of this).
+SHARE_WAIT_S_PER_SUB_CELL = 0.5e-3
 
 Routes = Mapping[int, tuple[int, ...]]
 
 
 def shares_replan(survivors: int, sub_cells: int, share_from: int = SHARE_FROM) -> bool:
-    """Whether one of ``survivors`` computes the re-plan of a ``sub_cells`` cycle for all:
-    from ``share_from`` survivors, each weighing once per SHARE_SUB_CELLS sub-cells (at
-    least once), and never below SHARE_MIN_SURVIVORS unless ``share_from`` says so."""
-    if survivors >= share_from:
-        return True
-    weight = max(1.0, sub_cells / SHARE_SUB_CELLS)
-    return survivors >= SHARE_MIN_SURVIVORS and survivors * weight >= share_from
+    """Whether one of ``survivors`` computes the re-plan of a ``sub_cells`` cycle for all
+    (agent.offline.apart.shared_by_one)."""
+    return shared_by_one(survivors, sub_cells, share_from)
 
 
-def computed_apart_from(sub_cells: int) -> bool:
-    """Whether a survivor computing a re-plan of ``sub_cells`` for itself does it in a
-    process of its own (APART_FROM_SUB_CELLS)."""
-    return sub_cells >= APART_FROM_SUB_CELLS
-
-
-def share_wait(survivors: int) -> float:
-    """Seconds a survivor waits for a shared re-plan of ``survivors`` survivors."""
-    return max(SHARE_WAIT_MIN_S, SHARE_WAIT_S_PER_SURVIVOR * survivors)
+def share_wait(survivors: int, sub_cells: int = 0) -> float:
+    """Seconds a survivor waits for a shared re-plan of ``survivors`` survivors over a
+    ``sub_cells`` cycle."""
+    return max(SHARE_WAIT_MIN_S, SHARE_WAIT_S_PER_SURVIVOR * survivors,
+               SHARE_WAIT_S_PER_SUB_CELL * sub_cells)
 
 
 class ReplanBoard:

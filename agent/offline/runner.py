@@ -24,6 +24,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from agent.core.errors import HardwareError
+from agent.offline.apart import apart_from
 from agent.offline.bodies import Bodies
 from agent.offline.hardware import Hardware
 from agent.offline.peers import PeerTable
@@ -31,7 +32,6 @@ from agent.offline.replan import (
     ReplanBoard,
     ReplanInputs,
     Routes,
-    computed_apart_from,
     routes_apart,
     share_wait,
 )
@@ -300,7 +300,7 @@ class OfflineRunner:
                                 pack_routes(list(routes.values())))
             self._announce(keys.replan_share(self.bus.mission, self.robot), share)
             return routes, f", shared with the fleet{where}"
-        wait = share_wait(len(inputs.survivors))
+        wait = share_wait(len(inputs.survivors), inputs.cycle.n)
         deadline = time.monotonic() + wait
         self.phase = f"waiting for robot {sharer}'s re-plan"
         while self._dead() == inputs.dead and not self.machine.all_covered:
@@ -327,12 +327,12 @@ class OfflineRunner:
                      ) -> tuple[Routes, str]:
         """The re-plan's routes, computed here off the loop, and a note for the event when
         it was not where it should have been. In a process of its own when ``apart`` (by
-        default for a large map, agent.offline.replan.computed_apart_from), else in a
+        default for a large map, agent.offline.apart.apart_from), else in a
         thread: at 100 robots a re-plan is a second or more of CPU, and a blocked loop sends
         no heartbeats (under load, peers declared robots that were re-planning dead: chaos
         campaign of 2026-12-02, trial 41)."""
         if apart is None:
-            apart = computed_apart_from(inputs.cycle.n)
+            apart = apart_from(inputs.cycle.n)
         where = ""
         if apart:
             try:

@@ -90,10 +90,12 @@ def _moves(state: PartitionState, giver: int, taker: int | None, unit: int) -> l
         return []
     if not _exact(state, giver):
         return _moves_of_large(state, giver, taker, unit)
-    label, neighbours, pins = state.label, state.neighbours, state.pins
+    label, neighbours, pins, bordering = (state.label, state.neighbours, state.pins,
+                                          state.bordering)
     out: list[_Move] = []
     for u in whole:
-        if u in pins or (taker is not None and taker not in [label[v] for v in neighbours[u]]):
+        if not bordering[u] or u in pins \
+                or (taker is not None and taker not in [label[v] for v in neighbours[u]]):
             continue
         found = _moves_of(state, giver, taker, unit, u)
         if found and not state.is_cut(giver, u):  # only cells with a move need the test
@@ -117,8 +119,9 @@ def _moves_of_large(state: PartitionState, giver: int, taker: int | None,
     """
     out: list[_Move] = []
     unsure: list[int] = []
+    bordering = state.bordering
     for u in state.whole[giver]:
-        if state.pinned(u):
+        if not bordering[u] or state.pinned(u):
             continue
         found = _moves_of(state, giver, taker, unit, u)
         if not found:
@@ -229,9 +232,9 @@ def _taker_scan(state: PartitionState, giver: int, unit: int) -> list[int]:
     # cells cached or not decide nothing for a region _exact takes without them.
     unsure: list[tuple[int, list[int]]] = []
     cut = state.cached_cut_cells(giver)  # nothing in the first loop computes it
-    ring = state.ring
+    ring, bordering = state.ring, state.bordering
     for u in whole:
-        if u in pins:
+        if not bordering[u] or u in pins:
             continue
         if unit == WHOLE:
             fresh = [y for v in neighbours[u]
@@ -310,10 +313,11 @@ def _best_whole_cell(state: PartitionState, giver: int, taker: int) -> int:
     callers come here only for a region _exact takes, whose cut cells are cached (the test
     is a lookup) or not needed (64 cells or fewer), so skipping a test changes nothing.
     """
-    label, neighbours, pins = state.label, state.neighbours, state.pins
+    label, neighbours, pins, bordering = (state.label, state.neighbours, state.pins,
+                                          state.bordering)
     best, best_gain = -1, 0
     for u in state.whole[giver]:
-        if u in pins:
+        if not bordering[u] or u in pins:
             continue
         gain, touches = 0, False
         for v in neighbours[u]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from planner.balanced.pieces import RegionPieces
 from planner.balanced.reshape import WHOLE
 from planner.balanced.state import PartitionState
 
@@ -38,7 +39,7 @@ def relieve(state: PartitionState) -> bool:
             break  # gain = amount * gap <= (spread / 2) ** 2, and givers come largest first
         if len(state.whole[giver]) < 2:
             continue
-        cut = state.cut_cells(giver)
+        cut = _cut_cells(state, giver)
         reach = state.load[giver] - offers.lowest_taker[giver]
         if best is not None and reach * reach <= 4 * best[0]:
             continue  # the bound above with this giver's own takers (k = 1000: most givers)
@@ -58,7 +59,7 @@ def _relieve_many(state: PartitionState) -> bool:
     for giver in offers.givers:
         if len(state.whole[giver]) < 2:
             continue
-        offer = _best_offer(state, offers, giver, state.cut_cells(giver), 0)
+        offer = _best_offer(state, offers, giver, _cut_cells(state, giver), 0)
         if offer is not None:
             found.append((-offer[0], giver, offer[1], offer[2]))
     used: set[int] = set()
@@ -74,20 +75,23 @@ def _best_offer(state: PartitionState, offers: _Offers, giver: int, cut: set[int
                 floor: int) -> tuple[int, int, list[int]] | None:
     """(gain, taker, piece) of ``giver``'s best hand-over with a gain above ``floor``."""
     load = state.load
-    best: tuple[int, int, list[int]] | None = None
-    last, piece, amount = -1, [], 0
+    best: tuple[int, int, int] | None = None
+    last, size, amount = -1, 0, 0
     for u, y in offers.of(giver):  # by cell, then taker: the first of equal gains wins
         if u != last:
             last = u
-            piece = [] if state.pinned(u) else _piece(state, giver, u) if u in cut else [u]
-            amount = WHOLE * len(piece)
-        if not piece:
+            size = 0 if state.pinned(u) else _pieces(state, giver).size(u) if u in cut else 1
+            amount = WHOLE * size
+        if not size:
             continue
         gap = load[giver] - load[y] - amount
         gain = amount * gap
         if gap > 0 and gain > floor and (best is None or gain > best[0]):
-            best = (gain, y, piece)
-    return best
+            best = (gain, y, u)
+    if best is None:
+        return None
+    gain, taker, u = best
+    return gain, taker, _pieces(state, giver).cells(u) if u in cut else [u]
 
 
 def _hand_over(state: PartitionState, giver: int, taker: int, piece: list[int]) -> None:
@@ -133,27 +137,20 @@ class _Offers:
         return list(zip(self._cell[lo:hi].tolist(), self._other[lo:hi].tolist(), strict=True))
 
 
-def _piece(state: PartitionState, robot: int, u: int) -> list[int]:
-    """``u`` and the cells only it connects to the region's pinned cells ([] if any pinned)."""
-    cache = state.pieces.setdefault(robot, {})
-    if u not in cache:
-        cache[u] = _find_piece(state, robot, u)
-    return cache[u]
+def _cut_cells(state: PartitionState, robot: int) -> set[int]:
+    """The region's cut cells: cached, or from the search that finds its pieces (the same
+    cells PartitionState.cut_cells would find, in one pass instead of two)."""
+    cut = state.cached_cut_cells(robot)
+    if cut is None:
+        cut = _pieces(state, robot).cut
+        state.remember_cut_cells(robot, cut)
+    return cut
 
 
-def _find_piece(state: PartitionState, robot: int, u: int) -> list[int]:
-    whole = state.whole[robot]
-    roots = [v for v in whole if state.pinned(v)]
-    if not roots or u in roots:
-        return []
-    seen = {u, roots[0]}
-    stack = [roots[0]]
-    while stack:
-        a = stack.pop()
-        for b in state.neighbours[a]:
-            if b in whole and b not in seen:
-                seen.add(b)
-                stack.append(b)
-    if not all(v in seen for v in roots):
-        return []
-    return [u, *(v for v in whole if v not in seen)]
+def _pieces(state: PartitionState, robot: int) -> RegionPieces:
+    """The pieces of ``robot``'s region (cached until the region or its pins change)."""
+    known = state.pieces.get(robot)
+    if known is None:
+        known = RegionPieces(state.whole[robot], state.neighbours, state.pinned)
+        state.pieces[robot] = known
+    return known
