@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/bench_balanced_families.py                 # the docs' table
     .venv/bin/python benchmarks/bench_balanced_families.py --seeds 5 --first-seed 100
     .venv/bin/python benchmarks/bench_balanced_families.py --families maze,rooms --ks 10,20
+    .venv/bin/python benchmarks/bench_balanced_families.py --large --ks 20,50 --seeds 2
 
 Every instance is fresh from its seed: a generated world (planner.maps.generated: open,
 30 % and 10 % random obstacles, rooms with doors, mazes, city blocks; the map's seed is the
@@ -66,7 +67,7 @@ class Row:
     cpu: list[float] = field(default_factory=list)
 
 
-def measure(spec: str, k: int, seed: int, row: Row) -> str:
+def measure(spec: str, k: int, seed: int, row: Row, *, flow_too: bool = True) -> str:
     grid = resolve_world(spec)
     area = work_area(grid, random_starts(grid, k, seed))
     tree = build_tree(area.cells, "dfs", seed=seed)
@@ -82,7 +83,7 @@ def measure(spec: str, k: int, seed: int, row: Row) -> str:
     row.bounds.append(bound)
     row.over.append(100.0 * (plan.makespan - bound) / bound)
     flow = ""
-    if k <= max(SMALL_KS):  # a flow network of k x n arcs: seconds on the small maps only
+    if flow_too and k <= max(SMALL_KS):  # k x n arcs: seconds on the small maps only
         lifted = flow_bound(area)
         row.flows.append(lifted)
         row.over_flow.append(100.0 * (plan.makespan - lifted) / lifted)
@@ -101,6 +102,9 @@ def main() -> None:
                         help="team sizes; up to 30 on the small maps, above on the large ones")
     parser.add_argument("--seeds", type=int, default=3, help="instances per family and k (3)")
     parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--large", action="store_true",
+                        help="plan every k on the large maps (few robots on a large map: "
+                             "regions of hundreds of cells, the planner's slowest case)")
     args = parser.parse_args()
     families = [f.strip() for f in args.families.split(",") if f.strip()]
     for family in families:
@@ -113,11 +117,11 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for family in families:
         for k in ks:
-            spec = FAMILIES[family][0 if k <= max(SMALL_KS) else 1]
+            spec = FAMILIES[family][0 if k <= max(SMALL_KS) and not args.large else 1]
             row = Row()
             for seed in range(args.first_seed, args.first_seed + args.seeds):
-                print(measure(spec.format(seed=seed), k, seed, row), file=sys.stderr,
-                      flush=True)
+                print(measure(spec.format(seed=seed), k, seed, row, flow_too=not args.large),
+                      file=sys.stderr, flush=True)
             made = ", ".join(f"{kind} {count}" for kind, count in sorted(row.kinds.items()))
             flows = (f"{statistics.mean(row.flows):.1f} | {statistics.mean(row.over_flow):.2f} | "
                      f"{max(row.over_flow):.2f}") if row.flows else "- | - | -"

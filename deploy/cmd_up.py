@@ -185,7 +185,8 @@ def endpoint_of(settings: UpSettings) -> str:
 
 def run(args: argparse.Namespace) -> int:
     settings = up_settings(args)
-    setup = MissionSetup.plan(settings)  # loads the map and plans: user mistakes stop here
+    # loads the map and plans: user mistakes stop here
+    setup = MissionSetup.plan(settings, say=lambda text: print(text, flush=True))
     settings = with_allowances(settings, args.stall_timeout, setup)
     endpoint = endpoint_of(settings)
     started = time.monotonic()

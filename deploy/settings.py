@@ -10,6 +10,7 @@ import math
 import os
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -128,6 +129,9 @@ REPLAN_S_PER_SUB_CELL = 0.5e-3
 # Until the first move it also allows this many times the launcher's plan per agent that
 # computes it, shared by the cores: a loaded host, the agents' process starts.
 PLAN_SLACK = 3.0
+# From this many free sub-cells `mstc up` says it is planning: a balanced plan there can take
+# tens of seconds before anything else is printed.
+LARGE_MAP_SUB_CELLS = 8_000
 
 _KILL_RE = re.compile(
     r"^(?P<robot>\d+)@(?:(?:progress=)?(?P<pct>\d+(?:\.\d+)?)%|progress=(?P<pct2>\d+(?:\.\d+)?)"
@@ -226,10 +230,16 @@ class MissionSetup:
         return len(self.starts)
 
     @classmethod
-    def plan(cls, settings: UpSettings) -> MissionSetup:
-        """Load the map, place the robots and plan (PlannerError for user mistakes)."""
+    def plan(cls, settings: UpSettings, say: Callable[[str], None] | None = None
+             ) -> MissionSetup:
+        """Load the map, place the robots and plan (PlannerError for user mistakes);
+        ``say`` hears that a large map's plan has begun (it can take a minute)."""
         grid = resolve_world(settings.world, settings.cell_size)
         starts = mission_starts(settings, grid)
+        free = int(grid.free.sum())
+        if say is not None and free >= LARGE_MAP_SUB_CELLS:
+            say(f"planning {settings.algo} for {settings.robots} robots on {free} free "
+                f"sub-cells of {settings.world}")
         began = time.process_time()
         if algorithm(settings.algo).family is Family.ONLINE:
             # An on-line algorithm plans nothing (its agents get no map); its lockstep

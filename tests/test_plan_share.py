@@ -189,7 +189,9 @@ async def test_a_fleet_on_a_large_map_shares_its_first_plan(
     fleet.agent.options = OfflineOptions(world="office")  # 6 participants: no crowd
     monkeypatch.setattr(apart_module, "SHARE_SUB_CELLS", 100)  # the office weighs 8 each
     plan, how = await fleet.agent._first_plan(list(fleet.starts))
-    assert how == ", shared with the fleet" and len(fleet.announced) == 1
+    assert how == ", shared with the fleet"
+    [(_, share)] = fleet.announced
+    assert share.digest == plan_digest(plan)
 
 
 class _Fleet:
