@@ -53,6 +53,8 @@ MODULES: dict[str, list[str]] = {
     "agent/offline/peers.py": ["tests/test_agent_units.py", "tests/test_agent_knowledge.py"],
     "deploy/supervisor.py": ["tests/test_kill_schedule.py", "tests/test_fleet_unit.py"],
     "deploy/settings.py": ["tests/test_kill_schedule.py", "tests/test_fleet_unit.py"],
+    "deploy/fleet_timing.py": ["tests/test_fleet_scale.py", "tests/test_autogroup.py",
+                               "tests/test_fleet_unit.py"],
     "planner/ormstc/machine.py": ["tests/test_ormstc_conflicts.py", "tests/test_ormstc_sim.py",
                                   "tests/test_ormstc_claims.py",
                                   "tests/test_ormstc_walk.py"],

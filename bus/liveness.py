@@ -101,7 +101,7 @@ class LivelinessService:
         self.robot = robot
         self.incarnation = incarnation
         # The service ticks every min(heartbeat period, token grace) / 2: a longer grace
-        # (crowded fleets, deploy.settings.fleet_timing) makes an idle agent wake less often.
+        # (crowded fleets, deploy.fleet_timing.fleet_timing) makes an idle agent wake less often.
         self.detector = FailureDetector(timeout=timeout, token_grace=token_grace,
                                         detector=robot, confirm_tokens=True)
         self.heartbeats = HeartbeatPublisher(bus, robot, incarnation,

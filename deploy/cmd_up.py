@@ -26,12 +26,15 @@ from deploy.fleet import (
     router_answers_within,
     unique_mission,
 )
-from deploy.launch import launch
-from deploy.settings import (
+from deploy.fleet_timing import (
     CROWDED_AGENTS_PER_CORE,
     CROWDED_DEAD_AFTER_S,
     CROWDED_LEASE_MS,
     DEFAULT_DEAD_AFTER_S,
+    fleet_timing,
+)
+from deploy.launch import launch
+from deploy.settings import (
     DEFAULT_STALL_S,
     DEFAULT_TIME_SCALE,
     REPLAN_S_PER_AGENT,
@@ -39,7 +42,6 @@ from deploy.settings import (
     MissionSetup,
     UpSettings,
     check_kills,
-    fleet_timing,
     parse_kill,
     stall_timeout,
     with_allowances,

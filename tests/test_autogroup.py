@@ -17,7 +17,7 @@ import pytest
 
 from deploy import autogroup
 from deploy.fleet import niced
-from deploy.settings import (
+from deploy.fleet_timing import (
     MAX_NICE,
     RELAY_CORE_SHARE,
     agent_niceness,

@@ -1,5 +1,5 @@
 """The timers and start-up pace mstc up derives from the fleet size and the core count
-(deploy.settings.fleet_timing), and the gather's cheap paths for big fleets; pure, no
+(deploy.fleet_timing.fleet_timing), and the gather's cheap paths for big fleets; pure, no
 processes (the 100-robot runs are benchmarks: docs/operations.md, "Fleet scale")."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from agent.core.roster import decide, to_wire
 from agent.offline.driver import PULL_ROBOTS, pull_period
 from bus.messages import RobotStatus
 from deploy.fleet import niced
-from deploy.settings import (
+from deploy.fleet_timing import (
     ANNOUNCE_BUDGET,
     BOOT_CPU_S,
     CROWDED_AGENTS_PER_CORE,

@@ -44,13 +44,15 @@ from deploy.fleet import (
     router_answers_within,
     start_ticks,
 )
+from deploy.fleet_timing import (
+    fleet_timing,
+)
 from deploy.monitor.coverage import reachable_sub_cells
 from deploy.progress import PlainProgress
 from deploy.settings import (
     KillOrder,
     MissionSetup,
     UpSettings,
-    fleet_timing,
     parse_kill,
     plan_allowance,
     replan_allowance,
