@@ -305,9 +305,7 @@ class OfflineAgent(BodyAgent):
             # 3.4 s on a host busy with three chaos trials, no heartbeat went out meanwhile,
             # and a peer declared this robot dead (chaos seed 63, trial 71); on a large
             # map in a process of its own (agent.offline.apart.apart_from)
-            if apart_from(sub_cells):
-                return await self._plan_apart(starts)
-            return await asyncio.to_thread(fleet_plan, *self._plan_args(starts)), ""
+            return await self._plan_here(starts, sub_cells)
         inputs = plan_inputs(self.grid, ids, starts, self.config.algo, self.options.tree,
                              self.config.seed)
         if first == self.robot:
@@ -336,8 +334,8 @@ class OfflineAgent(BodyAgent):
                 why = f"robot {first}'s not heard in {wait:.0f} s"
             if why:
                 self.phase = "planning"
-                plan = await asyncio.to_thread(fleet_plan, *self._plan_args(starts))
-                return plan, f", computed here: {why}"
+                plan, where = await self._plan_here(starts, sub_cells)
+                return plan, f", computed here: {why}{where}"
             # the sharer re-announces it every period; the backstop for a lost one asks the
             # sharer alone (every robot's state, in a crowd, is what starves the sharer)
             if self.now() - self._pulled >= pull_period(self.config.announce_period,
@@ -345,6 +343,14 @@ class OfflineAgent(BodyAgent):
                 self._pulled = self.now()
                 await self.pull(first)
             await self.peers.wait_news(self.config.announce_period)
+
+    async def _plan_here(self, starts: list[tuple[int, int]], sub_cells: int
+                         ) -> tuple[Plan, str]:
+        """The plan computed by this robot for itself: in a process of its own for a large
+        work-area (agent.offline.apart.apart_from), else in a thread."""
+        if apart_from(sub_cells):
+            return await self._plan_apart(starts)
+        return await asyncio.to_thread(fleet_plan, *self._plan_args(starts)), ""
 
     async def _plan_apart(self, starts: list[tuple[int, int]]) -> tuple[Plan, str]:
         """The plan computed in a process of its own, and a note when it was not."""

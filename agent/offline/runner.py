@@ -336,7 +336,7 @@ class OfflineRunner:
         where = ""
         if apart:
             try:
-                return (await routes_apart(inputs))[0], ""
+                return await routes_apart(inputs)  # and why not in a session of its own
             except (OSError, BrokenProcessPool) as error:
                 # no process to be had (no /dev/shm for its locks, a worker killed): the
                 # same re-plan in a thread, later in a crowd, and the event says so
