@@ -10,6 +10,7 @@ from typing import Any
 from bus import argtypes
 from bus.argtypes import positive_int
 from deploy.errors import UsageError
+from deploy.settings import LARGE_MAP_SUB_CELLS
 from planner.algorithms import algorithm, choices_help, names
 from planner.geometry import cell_of
 from planner.grid import work_area
@@ -149,6 +150,11 @@ def run(args: argparse.Namespace) -> int:
     tree = build_tree(area.cells, args.tree, seed=args.seed,
                       starts=[cell_of(s) for s in starts])
     if args.algo == "balanced":
+        if area.n >= LARGE_MAP_SUB_CELLS:
+            # a minute at worst (few robots on a large map: docs/balanced.md, "Follow-up 4"),
+            # said on stderr so that --json output stays one document
+            print(f"planning balanced for {k} robots on {area.n} sub-cells...",
+                  file=sys.stderr, flush=True)
         # the registry's planner, as the agents plan: balanced regions, or opt on the tree
         # when that is better (scipy.optimize is imported only when asked for)
         plan = algorithm("balanced").load_plan()(area, tree, "balanced", args.seed)

@@ -159,3 +159,19 @@ def test_plan_spellings_world_map_robots_starts_agree(capsys: pytest.CaptureFixt
     assert "deprecated, use --starts" in done.err
     assert main(["plan", "--world", "example", "--robots", "0"]) == 2
     assert "at least 1 robot" in capsys.readouterr().err
+
+
+def test_a_large_maps_balanced_plan_says_on_stderr_that_it_plans(
+        capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """20 robots on rooms:120x120:1 planned for 25 s with nothing printed; the JSON on
+    stdout stays one document."""
+    from deploy import cmd_plan
+
+    argv = ["plan", "--map", "office", "--random-robots", "3", "--algo", "balanced", "--json"]
+    assert main(argv) == 0
+    assert capsys.readouterr().err == ""  # 884 sub-cells: not worth a word
+    monkeypatch.setattr(cmd_plan, "LARGE_MAP_SUB_CELLS", 100)  # the office counts as large
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["k"] == 3
+    assert err == "planning balanced for 3 robots on 884 sub-cells...\n"
