@@ -37,6 +37,30 @@ def _piece_by_search(cells: set[int], neighbours: list[list[int]], pinned: set[i
     return [u, *(v for v in cells if v not in seen)]
 
 
+def _parts(cells: set[int], neighbours: list[list[int]]) -> int:
+    """Connected parts of ``cells``."""
+    seen: set[int] = set()
+    parts = 0
+    for start in cells:
+        if start in seen:
+            continue
+        parts += 1
+        seen.add(start)
+        stack = [start]
+        while stack:
+            for b in neighbours[stack.pop()]:
+                if b in cells and b not in seen:
+                    seen.add(b)
+                    stack.append(b)
+    return parts
+
+
+def _cut_by_removal(cells: set[int], neighbours: list[list[int]]) -> set[int]:
+    """The cells whose removal leaves more parts (brute force)."""
+    parts = _parts(cells, neighbours)
+    return {u for u in cells if _parts(cells - {u}, neighbours) > parts}
+
+
 def _region(rng: random.Random, free: np.ndarray, neighbours: list[list[int]],
             connected: bool) -> set[int]:
     """A random region: grown from one cell (connected), or any cells (in parts)."""
@@ -67,7 +91,8 @@ def _check(rng: random.Random, connected: bool) -> None:
     region = _region(rng, free_mask, neighbours, connected)
     pinned = set(rng.sample(sorted(region), rng.randint(0, min(3, len(region)))))
     pieces = RegionPieces(region, neighbours, lambda v: v in pinned)
-    assert pieces.cut == articulation_points(region, neighbours)
+    assert pieces.cut == articulation_points(region, neighbours) \
+        == _cut_by_removal(region, neighbours)
     for u in region:
         expected = _piece_by_search(region, neighbours, pinned, u)
         assert pieces.cells(u) == expected, (u, sorted(region), sorted(pinned))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 from collections import deque
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -288,45 +288,13 @@ def _hole_free(cells: set[int], neighbours: list[list[int]], width: int) -> bool
 
 
 def articulation_points(nodes: set[int], neighbours: list[list[int]]) -> set[int]:
-    """Cut vertices of the subgraph induced by ``nodes`` (iterative Hopcroft-Tarjan).
+    """Cut vertices of the subgraph induced by ``nodes`` (iterative Hopcroft-Tarjan, the one
+    search of planner.balanced.pieces, with no cell pinned)."""
+    return RegionPieces(nodes, neighbours, _unpinned).cut
 
-    Each stack frame keeps its own neighbour iterator, so returning to a cell resumes its
-    scan instead of re-indexing it (this runs thousands of times per plan).
-    """
-    out: set[int] = set()
-    depth: dict[int, int] = {}
-    low: dict[int, int] = {}
-    for root in nodes:
-        if root in depth:
-            continue
-        depth[root] = low[root] = 0
-        children = 0
-        stack: list[tuple[int, int, Iterator[int]]] = [(root, -1, iter(neighbours[root]))]
-        while stack:
-            u, parent, rest = stack[-1]
-            for v in rest:
-                if v == parent or v not in nodes:
-                    continue
-                seen = depth.get(v)
-                if seen is None:
-                    depth[v] = low[v] = depth[u] + 1
-                    stack.append((v, u, iter(neighbours[v])))
-                    break
-                if seen < low[u]:
-                    low[u] = seen
-            else:  # every neighbour done: u's subtree is finished
-                stack.pop()
-                if parent < 0:
-                    continue
-                if low[u] < low[parent]:
-                    low[parent] = low[u]
-                if parent == root:
-                    children += 1
-                elif low[u] >= depth[parent]:
-                    out.add(parent)
-        if children > 1:
-            out.add(root)
-    return out
+
+def _unpinned(cell: int) -> bool:
+    return False
 
 
 @functools.lru_cache(maxsize=8)
