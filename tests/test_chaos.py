@@ -405,13 +405,14 @@ def _trial(algo: str, k: int, *faults: Fault, messages: str = "",
     return Trial(0, 11, world, algo, k, scenario, faults, messages)
 
 
-async def _judged(trial: Trial, tmp_path: Path) -> Outcome:
+async def _judged(trial: Trial, tmp_path: Path, *, late_ok: bool = False) -> Outcome:
     outcome = await run_trial(trial, tmp_path / "trial")
     assert outcome.verdict == "ok", (outcome.detail, outcome.injected,
                                      (tmp_path / "trial" / "up.log").read_text()[-2000:])
     assert len(outcome.injected) == len(trial.faults), outcome.injected
-    assert not any("no such process" in f or "never came" in f or TOO_LATE in f
-                   for f in outcome.injected), outcome.injected
+    assert not any("no such process" in f or "never came" in f
+                   or (TOO_LATE in f and not late_ok) for f in outcome.injected), \
+        outcome.injected
     return outcome
 
 
@@ -429,7 +430,14 @@ PHASES = {
 @pytest.mark.slow
 @pytest.mark.parametrize("phase", list(PHASES))
 async def test_a_death_at_any_phase_is_survived(phase: str, tmp_path: Path) -> None:
-    await _judged(_trial("nb", 3, PHASES[phase]), tmp_path)
+    # An offline robot says "completed" once the whole area is covered (until then it
+    # watches the robot ahead, to take over), so a kill at that line races the launcher's
+    # own "every reachable sub-cell covered": alone, 3 of 8 runs of this phase found the
+    # mission complete first (`a23b1fb`). Either way the verdict must be ok.
+    outcome = await _judged(_trial("nb", 3, PHASES[phase]), tmp_path,
+                            late_ok=phase == "after-completing")
+    if phase == "after-completing" and not any(TOO_LATE in f for f in outcome.injected):
+        assert 1 in outcome.robots_lost, outcome  # killed after it completed: no harm
 
 
 @pytest.mark.integration
