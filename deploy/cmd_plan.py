@@ -10,7 +10,6 @@ from typing import Any
 from bus import argtypes
 from bus.argtypes import positive_int
 from deploy.errors import UsageError
-from deploy.settings import LARGE_MAP_SUB_CELLS
 from planner.algorithms import algorithm, choices_help, names
 from planner.geometry import cell_of
 from planner.grid import work_area
@@ -150,6 +149,8 @@ def run(args: argparse.Namespace) -> int:
     tree = build_tree(area.cells, args.tree, seed=args.seed,
                       starts=[cell_of(s) for s in starts])
     if args.algo == "balanced":
+        from deploy.settings import LARGE_MAP_SUB_CELLS  # here: 0.1 s of imports, balanced only
+
         if area.n >= LARGE_MAP_SUB_CELLS:
             # a minute at worst (few robots on a large map: docs/balanced.md, "Follow-up 4"),
             # said on stderr so that --json output stays one document

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from agent.offline.apart import shared_by_one
 from agent.offline.planshare import SHARE_FROM as PLAN_SHARE_FROM
-from agent.offline.replan import shares_replan
+from agent.offline.replan import SHARE_FROM as REPLAN_SHARE_FROM
 from bus.config import DEFAULT_LEASE_MS
 from deploy.errors import UsageError
 from deploy.fleet_timing import DEFAULT_DEAD_AFTER_S, core_count, crowded
@@ -49,7 +49,7 @@ MOVE_SIM_S = 2.5  # forward 1.93 s plus a share of turns (docs/simhw.md)
 # stays for hosts shared with other work, where the agents, niced, yield.
 REPLAN_S_PER_AGENT = 6.0
 # The re-plan's CPU also grows with the map, and unless one computes it for all
-# (agent.offline.replan.shares_replan) each survivor computes it: 12 robots on city
+# (agent.offline.apart.shared_by_one) each survivor computes it: 12 robots on city
 # 120 x 120 (40 392 sub-cells) at time scale 40, one killed at 30 %, stalled out after the
 # default 26 s (2026-12-06), when each of the 11 survivors still computed it. One re-plan
 # there costs a survivor 7.2 s of CPU alone (0.18 ms per sub-cell; 0.17 on 28 000 sub-cells
@@ -160,7 +160,7 @@ class MissionSetup:
     time_scale: float
     reachable: BoolArray
     planned_makespan: int
-    plan_cpu_s: float = 0.0  # CPU seconds the plan took here (the agents plan it again)
+    plan_cpu_s: float = 0.0  # CPU seconds the offline plan took here (the agents plan it again)
 
     @property
     def k(self) -> int:
@@ -173,11 +173,7 @@ class MissionSetup:
         ``say`` hears that a large map's plan has begun (it can take a minute)."""
         grid = resolve_world(settings.world, settings.cell_size)
         starts = mission_starts(settings, grid)
-        free = int(grid.free.sum())
-        if say is not None and free >= LARGE_MAP_SUB_CELLS:
-            say(f"planning {settings.algo} for {settings.robots} robots on {free} free "
-                f"sub-cells of {settings.world}")
-        began = time.process_time()
+        plan_cpu_s = 0.0  # the agents' own plan: an on-line fleet's agents make none
         if algorithm(settings.algo).family is Family.ONLINE:
             # An on-line algorithm plans nothing (its agents get no map); its lockstep
             # simulator's coverage time on the same world and starts stands in for the planned
@@ -186,11 +182,17 @@ class MissionSetup:
         else:
             # The agents plan the same way (the offline agent's plan); here it gives the planned
             # makespan and rejects unplannable missions before any process starts.
+            free = int(grid.free.sum())
+            if say is not None and free >= LARGE_MAP_SUB_CELLS:
+                say(f"planning {settings.algo} for {settings.robots} robots on {free} free "
+                    f"sub-cells of {settings.world}")
+            began = time.process_time()
             planned = offline_plan(settings, grid, starts).makespan
+            plan_cpu_s = time.process_time() - began
         return cls(world=settings.world, cell_size=settings.cell_size, grid=grid,
                    starts=starts, algo=settings.algo, tree=settings.tree, seed=settings.seed,
                    time_scale=settings.time_scale, reachable=reachable_sub_cells(grid, starts),
-                   planned_makespan=planned, plan_cpu_s=time.process_time() - began)
+                   planned_makespan=planned, plan_cpu_s=plan_cpu_s)
 
 
 @dataclass(frozen=True)
@@ -250,7 +252,7 @@ def replan_allowance(sub_cells: int, robots: int, cores: int | None = None) -> f
     """Seconds the survivors of ``robots`` may take to re-plan ``sub_cells`` after a death,
     beyond what stall_timeout allows (REPLAN_S_PER_SUB_CELL)."""
     survivors = max(robots - 1, 0)
-    computers = 1 if shares_replan(survivors, sub_cells) else survivors
+    computers = 1 if shared_by_one(survivors, sub_cells, REPLAN_SHARE_FROM) else survivors
     if computers == 0:
         return 0.0
     return REPLAN_S_PER_SUB_CELL * sub_cells * computers / min(computers, core_count(cores))

@@ -165,12 +165,12 @@ def test_a_large_maps_balanced_plan_says_on_stderr_that_it_plans(
         capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     """20 robots on rooms:120x120:1 planned for 25 s with nothing printed; the JSON on
     stdout stays one document."""
-    from deploy import cmd_plan
+    from deploy import settings
 
     argv = ["plan", "--map", "office", "--random-robots", "3", "--algo", "balanced", "--json"]
     assert main(argv) == 0
     assert capsys.readouterr().err == ""  # 884 sub-cells: not worth a word
-    monkeypatch.setattr(cmd_plan, "LARGE_MAP_SUB_CELLS", 100)  # the office counts as large
+    monkeypatch.setattr(settings, "LARGE_MAP_SUB_CELLS", 100)  # the office counts as large
     assert main(argv) == 0
     out, err = capsys.readouterr()
     assert json.loads(out)["k"] == 3

@@ -44,9 +44,7 @@ from deploy.fleet import (
     router_answers_within,
     start_ticks,
 )
-from deploy.fleet_timing import (
-    fleet_timing,
-)
+from deploy.fleet_timing import fleet_timing
 from deploy.monitor.coverage import reachable_sub_cells
 from deploy.progress import PlainProgress
 from deploy.settings import (
@@ -206,6 +204,9 @@ def test_the_first_plans_allowance_follows_who_computes_it() -> None:
     cmd_up.add_arguments(parser)
     office = MissionSetup.plan(cmd_up.up_settings(parser.parse_args(["-n", "6"])))
     assert office.plan_cpu_s > 0 and int(office.reachable.sum()) == 884
+    online = MissionSetup.plan(cmd_up.up_settings(parser.parse_args(
+        ["-n", "3", "--algo", "ormstc"])))
+    assert online.plan_cpu_s == 0.0  # its agents plan nothing: no allowance, no "planned in"
     setup = dataclasses.replace(office, plan_cpu_s=2.0)
     settings = UpSettings(robots=6, world="office", stall_timeout=26.25)
     longer = with_allowances(settings, None, setup, cores=2)

@@ -112,13 +112,13 @@ def _stall(tmp_path: Path, plan_allowance: float, moved: bool) -> tuple[Outcome,
                                       asyncio.get_running_loop().time())
         return await task
 
-    loop_began = asyncio.new_event_loop()
+    loop = asyncio.new_event_loop()
     try:
-        began = loop_began.time()
-        outcome = loop_began.run_until_complete(asyncio.wait_for(watched(), 10))
-        return outcome, loop_began.time() - began
+        began = loop.time()
+        outcome = loop.run_until_complete(asyncio.wait_for(watched(), 10))
+        return outcome, loop.time() - began
     finally:
-        loop_began.close()
+        loop.close()
 
 
 def test_the_first_plan_has_its_allowance_before_the_first_move_only(tmp_path: Path) -> None:

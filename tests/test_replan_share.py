@@ -14,6 +14,7 @@ import pytest
 
 from agent.offline import apart as apart_module
 from agent.offline import runner as runner_module
+from agent.offline.apart import shared_by_one
 from agent.offline.driver import next_in_turn
 from agent.offline.plan import compute_plan
 from agent.offline.replan import (
@@ -21,7 +22,6 @@ from agent.offline.replan import (
     ReplanBoard,
     ReplanInputs,
     share_wait,
-    shares_replan,
 )
 from agent.offline.runner import OfflineRunner
 from bus import keys
@@ -92,14 +92,16 @@ def test_on_a_large_map_fewer_survivors_share_the_replan(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """11 survivors of 12 on 40 392 sub-cells each computed a 7.2 s re-plan on 2 cores: 84-90
     s, five of them declared dead meanwhile. A survivor weighs once per 4 000 sub-cells."""
-    assert not shares_replan(12, 884) and shares_replan(13, 884)  # the office: a crowd only
-    assert not shares_replan(12, 4_000) and shares_replan(13, 4_000)
-    assert shares_replan(11, 40_392) and shares_replan(3, 40_392)
-    assert not shares_replan(2, 40_392)  # two computations: the wall time of one, on 2 cores
-    assert not shares_replan(4, 12_668) and shares_replan(5, 12_668)
-    assert shares_replan(2, 884, share_from=2)  # told so: shares whatever the map
-    assert shares_replan(20, 40_392, share_from=100)
-    assert not shares_replan(20, 4_000, share_from=100)
+    # the office: a crowd only
+    assert not shared_by_one(12, 884, SHARE_FROM) and shared_by_one(13, 884, SHARE_FROM)
+    assert not shared_by_one(12, 4_000, SHARE_FROM) and shared_by_one(13, 4_000, SHARE_FROM)
+    assert shared_by_one(11, 40_392, SHARE_FROM) and shared_by_one(3, 40_392, SHARE_FROM)
+    # two computations: the wall time of one, on 2 cores
+    assert not shared_by_one(2, 40_392, SHARE_FROM)
+    assert not shared_by_one(4, 12_668, SHARE_FROM) and shared_by_one(5, 12_668, SHARE_FROM)
+    assert shared_by_one(2, 884, 2)  # told so: shares whatever the map
+    assert shared_by_one(20, 40_392, 100)
+    assert not shared_by_one(20, 4_000, 100)
     plan = _plan()
     assert plan.cycle.n < 4_000 and _board(plan, share_from=SHARE_FROM).sharer(DEAD) is None
     # three survivors of a map ten times the office's (in weight): the lowest computes

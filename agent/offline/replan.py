@@ -59,12 +59,6 @@ SHARE_WAIT_S_PER_SUB_CELL = 0.5e-3
 Routes = Mapping[int, tuple[int, ...]]
 
 
-def shares_replan(survivors: int, sub_cells: int, share_from: int = SHARE_FROM) -> bool:
-    """Whether one of ``survivors`` computes the re-plan of a ``sub_cells`` cycle for all
-    (agent.offline.apart.shared_by_one)."""
-    return shared_by_one(survivors, sub_cells, share_from)
-
-
 def share_wait(survivors: int, sub_cells: int = 0) -> float:
     """Seconds a survivor waits for a shared re-plan of ``survivors`` survivors over a
     ``sub_cells`` cycle."""
@@ -147,9 +141,9 @@ class ReplanBoard:
 
     def sharer(self, dead: tuple[int, ...]) -> int | None:
         """The survivor that computes epoch ``dead``'s re-plan for all of them, or None if
-        each computes it (shares_replan)."""
+        each computes it (agent.offline.apart.shared_by_one)."""
         survivors = [r for r in self.members if r not in dead]
-        shared = shares_replan(len(survivors), self.cycle.n, self.share_from)
+        shared = shared_by_one(len(survivors), self.cycle.n, self.share_from)
         return survivors[0] if survivors and shared else None
 
     def shared(self, inputs: ReplanInputs) -> Shared | None:

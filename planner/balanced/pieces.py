@@ -29,15 +29,14 @@ class RegionPieces:
         self.cut: set[int] = set()  # the region's articulation cells
         # The first tree grows from a pinned cell; the cells it reaches are numbered first.
         first = self._roots[:1]
-        self._reached = self._search(first, neighbours) if first else 0
+        self._reached = self._search(first[0], neighbours) if first else 0
         for root in cells:  # any other part of the region, for its cut cells
             if root not in self._order:
-                self._search([root], neighbours)
+                self._search(root, neighbours)
 
-    def _search(self, roots: list[int], neighbours: list[list[int]]) -> int:
-        """Grow one depth-first tree from ``roots[0]``; returns the cells numbered so far."""
+    def _search(self, root: int, neighbours: list[list[int]]) -> int:
+        """Grow one depth-first tree from ``root``; returns the cells numbered so far."""
         cells, order, end, cut_off = self._cells, self._order, self._end, self._cut_off
-        root = roots[0]
         depth = {root: 0}
         low = {root: 0}
         order[root] = len(order)
