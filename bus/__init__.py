@@ -11,6 +11,7 @@ bridge    Bus: asyncio pub/sub, queries, queryables and liveliness over one sess
 detector  FailureDetector: who is dead, from heartbeats, tokens and notices (sans-I/O)
 liveness  HeartbeatPublisher, LivelinessService: the token, heartbeats and the detector's I/O
 announce  Announcer: periodically re-published, queryable state
+handoff   a thread per declaration hands its items to the loop: Zenoh never waits for Python
 inbox     thread-to-loop hand-off buffers and their policies (LatestWins, BoundedFifo)
 router    the embedded router (``mstc router``) and a helper to start it as a process
 """

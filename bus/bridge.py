@@ -1,11 +1,12 @@
 """asyncio bridge over one open Zenoh session.
 
-Zenoh runs callbacks on its own threads. Here those callbacks only append the raw sample to a
-small buffer under a lock and, if no wake-up is pending, schedule one with
-``call_soon_threadsafe``: a burst of samples costs one wake-up (measured ~40k msg/s against
-~15k/s with one wake-up per sample). Decoding, handlers, responders and liveliness callbacks
-all run on the event loop. Buffers are bounded by the subscription's policy so a slow
-consumer costs dropped (and counted) messages, never a blocked Zenoh thread.
+Zenoh's receive threads hand each declaration's samples to a thread of its own
+(bus.handoff), which only appends the raw sample to a small buffer under a lock and, if no
+wake-up is pending, schedules one with ``call_soon_threadsafe``: a burst of samples costs
+one wake-up (measured ~40k msg/s against ~15k/s with one wake-up per sample). Decoding,
+handlers, responders and liveliness callbacks all run on the event loop. Buffers are bounded
+by the subscription's policy so a slow consumer costs dropped (and counted) messages, never
+a blocked Zenoh thread.
 
 Use ``async with Bus(session, mission) as bus`` (or ``Bus.connect(settings)``): async
 query responders run in the bus's own task group, which is cancelled and awaited on exit.
@@ -32,6 +33,7 @@ from bus.drops import DropCounter
 from bus.errors import BusClosedError, DecodeError
 from bus.faults import MessageFaults
 from bus.handles import LivelinessWatch, QueryableHandle, Responder
+from bus.handoff import handed_off
 from bus.inbox import BoundedFifo, Inbox, LatestWins, Policy, Received
 from bus.messages.schema import ROBOT_NAMED
 from bus.qos import DEFAULT as DEFAULT_QOS
@@ -233,8 +235,9 @@ class Bus:
         sub: Subscription[M] = Subscription(self, key, expected, policy or BoundedFifo(),
                                             handler)
         if not recover and on_miss is None:
-            sub._declared = [self.session.declare_subscriber(
-                key, zenoh.handlers.Callback(sub._on_sample, indirect=False))]
+            sub._declared = [handed_off(
+                lambda channel: self.session.declare_subscriber(key, channel),
+                sub._on_sample, key)]
         else:
             report = MissReport(key, self.drops, self.loop, on_miss)
             sub.sources = report.sources
@@ -325,8 +328,8 @@ class Bus:
         handle = QueryableHandle(
             self.loop, self.drops, key, max_queue,
             lambda query: self.answer(key, query, responder, request_type))
-        handle._zenoh = self.session.declare_queryable(
-            key, zenoh.handlers.Callback(handle._on_query, indirect=False))
+        handle._zenoh = handed_off(
+            lambda channel: self.session.declare_queryable(key, channel), handle._on_query, key)
         self._closables.append(handle)
         return handle
 
@@ -391,8 +394,9 @@ class Bus:
                          on_delete: Callable[[str], None]) -> LivelinessWatch:
         """Watch tokens matching ``key``; existing tokens are reported first as puts."""
         watch = LivelinessWatch(self.loop, self.drops, key, on_put, on_delete)
-        watch._zenoh = self.session.liveliness().declare_subscriber(
-            key, zenoh.handlers.Callback(watch._on_sample, indirect=False), history=True)
+        watch._zenoh = handed_off(
+            lambda channel: self.session.liveliness().declare_subscriber(
+                key, channel, history=True), watch._on_sample, f"tokens {key}")
         self._closables.append(watch)
         return watch
 

@@ -1,6 +1,7 @@
 """Loop-side handles of Zenoh declarations: liveliness watches and queryables (the bridge's
-pattern: Zenoh's callback only queues the token change or the query; callbacks, responders and
-replies run on the event loop). ``bus.bridge.Bus`` declares them."""
+pattern: their samples and queries reach them through bus.handoff, which only queues them;
+callbacks, responders and replies run on the event loop). ``bus.bridge.Bus`` declares
+them."""
 
 from __future__ import annotations
 

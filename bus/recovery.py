@@ -34,6 +34,7 @@ import zenoh.ext
 
 from bus import keys
 from bus.drops import DropCounter
+from bus.handoff import handed_off
 from bus.messages.schema import RECOVERABLE
 from bus.qos import Qos
 
@@ -128,11 +129,13 @@ def declare_recovering_subscriber(session: zenoh.Session, key_expr: str,
     """An advanced subscriber on ``key_expr`` that asks late and cut-off publishers' caches
     for what it missed; ``on_miss(source id, count)`` (on a Zenoh thread) for samples no
     cache held. Returns the subscriber and its miss listener (undeclare both)."""
-    subscriber = zenoh.ext.declare_advanced_subscriber(
-        session, key_expr, zenoh.handlers.Callback(on_sample, indirect=False),
-        history=zenoh.ext.HistoryConfig(detect_late_publishers=True,
-                                        max_samples=HISTORY_SAMPLES),
-        recovery=zenoh.ext.RecoveryConfig(heartbeat=True, periodic_queries=None))
+    subscriber = handed_off(
+        lambda channel: zenoh.ext.declare_advanced_subscriber(
+            session, key_expr, channel,
+            history=zenoh.ext.HistoryConfig(detect_late_publishers=True,
+                                            max_samples=HISTORY_SAMPLES),
+            recovery=zenoh.ext.RecoveryConfig(heartbeat=True, periodic_queries=None)),
+        on_sample, key_expr)
     listener = subscriber.sample_miss_listener(
         lambda miss: on_miss(str(miss.source), int(miss.nb)))
     return subscriber, listener
@@ -156,8 +159,8 @@ def declare_recovering(session: zenoh.Session, key_expr: str, mission: str,
         if not depth(str(sample.key_expr)):
             on_sample(sample)
 
-    declared.append(session.declare_subscriber(
-        key_expr, zenoh.handlers.Callback(on_plain, indirect=False)))
+    declared.append(handed_off(lambda channel: session.declare_subscriber(key_expr, channel),
+                               on_plain, key_expr))
     return declared
 
 

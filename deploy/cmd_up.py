@@ -31,6 +31,7 @@ from deploy.fleet_timing import (
     CROWDED_DEAD_AFTER_S,
     CROWDED_LEASE_MS,
     DEFAULT_DEAD_AFTER_S,
+    FLAT_OUT_AGENTS_PER_CORE,
     fleet_timing,
 )
 from deploy.launch import launch
@@ -99,8 +100,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lease-ms", type=int, default=None,
                         help=f"Zenoh transport lease of every process (default "
                              f"{DEFAULT_LEASE_MS}; with more than {CROWDED_AGENTS_PER_CORE} "
-                             f"agents per CPU core at least {CROWDED_LEASE_MS}, growing with "
-                             f"the fleet: docs/operations.md, 'Fleet scale')")
+                             f"agents per CPU core, or {FLAT_OUT_AGENTS_PER_CORE} at time "
+                             f"scale 0, at least {CROWDED_LEASE_MS}, growing with the fleet: "
+                             f"docs/operations.md, 'Fleet scale')")
     parser.add_argument("--stall-timeout", type=positive, default=None, metavar="S",
                         help=f"fail if coverage does not grow for S wall seconds (default "
                              f"{DEFAULT_STALL_S:g} s plus the wall time of {STALL_MOVES} moves, "
@@ -116,7 +118,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dead-after", type=positive, default=None, metavar="S",
                         help=f"agents declare a robot dead after S s without its heartbeat "
                              f"(default {DEFAULT_DEAD_AFTER_S:g}; with more than "
-                             f"{CROWDED_AGENTS_PER_CORE} agents per CPU core at least "
+                             f"{CROWDED_AGENTS_PER_CORE} agents per CPU core, or "
+                             f"{FLAT_OUT_AGENTS_PER_CORE} at time scale 0, at least "
                              f"{CROWDED_DEAD_AFTER_S:g}, growing with the fleet)")
     parser.add_argument("--agent-arg", action="append", default=[], metavar="ARG",
                         help="extra argument for every agent, e.g. --agent-arg=--dead-after=2")
@@ -147,7 +150,8 @@ def up_settings(args: argparse.Namespace, cores: int | None = None) -> UpSetting
 
         require_extra()
     timing = fleet_timing(args.robots, cores, lease_ms=args.lease_ms,
-                          dead_after=args.dead_after, start_timeout=args.start_timeout)
+                          dead_after=args.dead_after, start_timeout=args.start_timeout,
+                          flat_out=args.time_scale == 0)
     mission = args.mission or unique_mission()
     if args.recovery is not None and algorithm(args.algo).family is not Family.OFFLINE:
         raise UsageError(f"--recovery {args.recovery} needs an offline algorithm, not "

@@ -2,7 +2,9 @@
 
 Small fleets run with the agents' own defaults; crowded ones (more than
 CROWDED_AGENTS_PER_CORE agents per core) get longer leases, heartbeat timeouts and periods,
-a paced start and niced agents. docs/operations.md, "Fleet scale", has the measurements.
+a paced start and niced agents; so do the lease and heartbeat timeout of a fleet at time
+scale 0 with more than FLAT_OUT_AGENTS_PER_CORE agents per core. docs/operations.md,
+"Fleet scale" and "Flat out", has the measurements.
 """
 
 from __future__ import annotations
@@ -35,6 +37,14 @@ CROWDED_DEAD_AFTER_S = 5.0
 # per core (30 robots on 2 cores keep the agents' own 0.2 s and 0.5 s), the heartbeat timeout
 # HEARTBEATS_PER_TIMEOUT periods; at most BOOTING_PER_CORE agents per core start at a time;
 # BOOT_CPU_S is the CPU an agent spends before it is heard (imports, session, pose).
+# At time scale 0 every agent moves as fast as simhw answers: each is a CPU-bound process,
+# and on a host whose cores are all taken the scheduler leaves a thread runnable but waiting
+# for up to a second at a time (12 agents on 2 cores, city:60x60:1: the router's threads
+# waited on the run queue 0.6-1.0 s in their worst seconds). A 1 s lease then expired
+# between a healthy agent and the router in 5 of 12 missions, and the robot was declared
+# dead by its token. Beyond this many agents per core a flat-out fleet gets the crowded
+# lease and heartbeat timeout (0 of 8 lost with them; docs/operations.md, "Flat out").
+FLAT_OUT_AGENTS_PER_CORE = 4
 HEARTBEAT_BUDGET = 2500.0  # heartbeat deliveries per second per core
 ANNOUNCE_BUDGET = 1000.0  # re-announced statuses delivered per second per core
 MAX_ANNOUNCE_S = 5.0
@@ -99,6 +109,11 @@ def agent_niceness(robots: int, cores: int | None = None) -> int:
                  if relay_core_share(robots, cores, nice) >= RELAY_CORE_SHARE), MAX_NICE)
 
 
+def starved_flat_out(robots: int, cores: int | None = None) -> bool:
+    """A fleet at time scale 0 with more than FLAT_OUT_AGENTS_PER_CORE agents per core."""
+    return robots > FLAT_OUT_AGENTS_PER_CORE * core_count(cores)
+
+
 def core_count(cores: int | None) -> int:
     """``cores``, or os.cpu_count() (at least 1)."""
     return max(1, cores or os.cpu_count() or 1)
@@ -135,8 +150,8 @@ class FleetTiming:
 
 
 def fleet_timing(robots: int, cores: int | None = None, *, lease_ms: int | None = None,
-                 dead_after: float | None = None, start_timeout: float | None = None
-                 ) -> FleetTiming:
+                 dead_after: float | None = None, start_timeout: float | None = None,
+                 flat_out: bool = False) -> FleetTiming:
     """The timers of a fleet of ``robots`` agents on ``cores`` CPU cores (a pure function of
     the two; the given values win). docs/operations.md, "Fleet scale", has the measurements.
 
@@ -146,12 +161,17 @@ def fleet_timing(robots: int, cores: int | None = None, *, lease_ms: int | None 
     fleet while the CPU does not: the periods grow so that they stay within a budget per core
     (the heartbeat timeout stays HEARTBEATS_PER_TIMEOUT periods), the agents start at most
     BOOTING_PER_CORE per core at a time (each waits to be heard before the next starts), and
-    the gather and start-up timeouts cover the paced start of the whole fleet."""
+    the gather and start-up timeouts cover the paced start of the whole fleet. A fleet
+    running ``flat_out`` (time scale 0) with more than FLAT_OUT_AGENTS_PER_CORE agents per
+    core gets at least the crowded lease and heartbeat timeout (starved_flat_out)."""
     n = core_count(cores)
     if not crowded(robots, n):
+        starved = flat_out and starved_flat_out(robots, n)
         return FleetTiming(
-            lease_ms=DEFAULT_LEASE_MS if lease_ms is None else lease_ms,
-            dead_after=DEFAULT_DEAD_AFTER_S if dead_after is None else dead_after,
+            lease_ms=(CROWDED_LEASE_MS if starved else DEFAULT_LEASE_MS)
+            if lease_ms is None else lease_ms,
+            dead_after=(CROWDED_DEAD_AFTER_S if starved else DEFAULT_DEAD_AFTER_S)
+            if dead_after is None else dead_after,
             start_timeout=start_timeout or 30.0 + robots)
     squared = robots * robots
     heartbeat = _centi(max(DEFAULT_HEARTBEAT_PERIOD, squared / (HEARTBEAT_BUDGET * n)))

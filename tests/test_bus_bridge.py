@@ -8,6 +8,7 @@ import logging
 import signal
 import subprocess
 import sys
+import threading
 from collections.abc import AsyncIterator
 
 import pytest
@@ -103,6 +104,106 @@ async def test_slow_consumer_does_not_block_and_drops_are_counted(bus: Bus, othe
     kept = [r.msg.seq for r in iter(sub.try_recv, None)]
     assert kept == list(range(290, 300))
     assert bus.drops.total("progress", "overflow") == 290
+
+
+async def test_a_stalled_subscription_holds_back_no_other_on_the_link(
+        bus: Bus, other: Bus) -> None:
+    # bus.handoff: Zenoh's receive thread hands samples over and reads on. Had it run the
+    # stuck hand-over itself, nothing more would be read from the link: the second
+    # subscription would hear nothing, and the link would expire after its lease.
+    stuck = bus.subscribe(keys.progress(bus.mission, 1), Progress)
+    fast = bus.subscribe(keys.progress(bus.mission, 2), Progress)
+    entered, release = threading.Event(), threading.Event()
+
+    def hold(key: str, raw: bytes) -> None:  # on the subscription's hand-over thread
+        entered.set()
+        release.wait(20.0)
+
+    stuck._inbox.push = hold  # type: ignore[method-assign,assignment]
+    try:
+        async with asyncio.timeout(5.0):
+            while fast.try_recv() is None:  # both declarations have reached the router
+                other.publish(keys.progress(bus.mission, 2), progress(0, robot=2))
+                await asyncio.sleep(0.05)
+            while not entered.is_set():
+                other.publish(keys.progress(bus.mission, 1), progress(0))
+                await asyncio.sleep(0.05)
+        for seq in range(1, 51):
+            other.publish(keys.progress(bus.mission, 2), progress(seq, robot=2))
+        async with asyncio.timeout(5.0):
+            while (await fast.recv()).msg.seq < 50:
+                pass
+        assert not release.is_set()  # the first subscription is still stuck
+    finally:
+        release.set()
+
+
+async def test_a_stalled_queryable_holds_back_no_subscription_on_the_link(
+        bus: Bus, other: Bus) -> None:
+    # simhw's command queryables: a query waiting to be handed over must not stop the link
+    key = keys.hw_cmd(bus.mission, 0)
+    handle = bus.declare_queryable(key, lambda _request: None)
+    fast = bus.subscribe(keys.progress(bus.mission, 2), Progress)
+    entered, release = threading.Event(), threading.Event()
+
+    def hold(key: str, query: object) -> None:  # on the queryable's hand-over thread
+        entered.set()
+        release.wait(20.0)
+
+    handle._inbox.push = hold  # type: ignore[method-assign,assignment]
+    try:
+        async with asyncio.timeout(5.0):
+            while fast.try_recv() is None:
+                other.publish(keys.progress(bus.mission, 2), progress(0, robot=2))
+                await asyncio.sleep(0.05)
+        asked = asyncio.ensure_future(other.query(key, None, AdminReply, timeout=3.0))
+        async with asyncio.timeout(5.0):
+            while not entered.is_set():
+                await asyncio.sleep(0.02)
+        for seq in range(1, 51):
+            other.publish(keys.progress(bus.mission, 2), progress(seq, robot=2))
+        async with asyncio.timeout(5.0):
+            while (await fast.recv()).msg.seq < 50:
+                pass
+        assert not release.is_set()
+    finally:
+        release.set()
+    assert await asked == []  # held past its timeout: no answer
+
+
+def test_a_process_that_never_undeclares_still_exits() -> None:
+    # zenoh-python's hand-over thread is a daemon only when declared from a daemon thread: a
+    # non-daemon one kept a process that never closed its session alive forever at exit
+    script = ("import zenoh\n"
+              "from bus.handoff import handed_off\n"
+              "config = zenoh.Config()\n"
+              "config.insert_json5('scouting/multicast/enabled', 'false')\n"
+              "session = zenoh.open(config)\n"
+              "handed_off(lambda handler: session.declare_subscriber('t/**', handler),\n"
+              "           print, 't/**')\n"
+              "print('declared', flush=True)\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=30)
+    assert "declared" in done.stdout, done.stderr
+
+
+def test_a_process_that_closes_its_bus_exits_cleanly(router: str) -> None:
+    script = ("import asyncio, sys\n"
+              "from bus import keys\n"
+              "from bus.bridge import Bus\n"
+              "from bus.config import ConnectionSettings\n"
+              "from bus.messages import Progress\n"
+              "async def main() -> None:\n"
+              "    settings = ConnectionSettings(connect=(sys.argv[1],), mission='exit')\n"
+              "    async with Bus.connect(settings) as bus:\n"
+              "        bus.subscribe(keys.all_progress('exit'), Progress)\n"
+              "        bus.watch_liveliness(keys.all_alive('exit'), print, print)\n"
+              "        bus.declare_queryable(keys.hw_cmd('exit', 0), lambda _request: None)\n"
+              "asyncio.run(main())\n"
+              "print('closed', flush=True)\n")
+    done = subprocess.run([sys.executable, "-c", script, router], capture_output=True,
+                          text=True, timeout=30)
+    assert done.returncode == 0 and "closed" in done.stdout, done.stderr
 
 
 async def test_garbage_is_counted_not_raised(bus: Bus, other: Bus) -> None:

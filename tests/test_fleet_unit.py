@@ -228,6 +228,27 @@ def test_crowded_fleets_get_long_liveness_timers_unless_told() -> None:
     assert settings(30, 2, lease_ms=800, dead_after=2.0) == (800, 2.0)
 
 
+def test_a_dozen_robots_flat_out_get_the_crowded_lease_and_timeout() -> None:
+    # time scale 0 makes every agent a CPU-bound process: 12 on 2 cores starved the links'
+    # threads past a 1 s lease (deploy.fleet_timing.FLAT_OUT_AGENTS_PER_CORE)
+    def timers(robots: int, cores: int, **given: float) -> tuple[float, float]:
+        timing = fleet_timing(robots, cores, flat_out=True, **given)  # type: ignore[arg-type]
+        return timing.lease_ms, timing.dead_after
+
+    assert timers(12, 2) == (5000, 5.0)
+    assert timers(9, 2) == (5000, 5.0)
+    assert timers(8, 2) == (1000, 3.0)  # up to 4 per core: the agents' own defaults
+    assert timers(12, 4) == (1000, 3.0)
+    assert timers(12, 2, lease_ms=700, dead_after=2.0) == (700, 2.0)  # given: kept
+    assert fleet_timing(30, 2, flat_out=True) == fleet_timing(30, 2)  # crowded: its own rule
+    parser = argparse.ArgumentParser()
+    cmd_up.add_arguments(parser)
+    flat = cmd_up.up_settings(parser.parse_args(["-n", "12", "--time-scale", "0"]), cores=2)
+    paced = cmd_up.up_settings(parser.parse_args(["-n", "12"]), cores=2)
+    assert (flat.lease_ms, flat.dead_after) == (5000, 5.0)
+    assert (paced.lease_ms, paced.dead_after) == (1000, 3.0)
+
+
 # --- reachable sub-cells: brute-force oracle ------------------------------------------------
 
 def reachable_oracle(free: np.ndarray, starts: list[tuple[int, int]]) -> np.ndarray:

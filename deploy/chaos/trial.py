@@ -27,10 +27,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bus.config import DEFAULT_LEASE_MS
 from bus.faults import ENV as FAULTS_ENV
 from deploy.chaos.inject import Injector, RouterProcess
 from deploy.chaos.schedule import TOO_LATE, Trial
 from deploy.fleet import ended_with_launcher, mstc_argv
+from deploy.fleet_timing import DEFAULT_DEAD_AFTER_S
 from deploy.settings import NOT_CARRIED_OUT, KillOrder
 from planner.maps import resolve_world
 
@@ -97,7 +99,11 @@ def up_argv(trial: Trial, endpoint: str, run_dir: Path, record: Path) -> list[st
         "up", "-n", str(trial.robots), "--world", trial.world, "--algo", trial.algo,
         "--seed", str(trial.seed), "--time-scale", "0", "--plain", "--connect", endpoint,
         "--mission", f"chaos-{trial.index}-{trial.seed}", "--run-dir", str(run_dir),
-        "--record", str(record), "--linger", "1", "--stall-timeout", "25", *deaths)
+        "--record", str(record), "--linger", "1", "--stall-timeout", "25",
+        # the schedule's thresholds (DEATH_HANG_S, LONG_HANG_S) are these timers'; mstc up
+        # would lengthen them for a dozen robots at time scale 0 (fleet_timing, flat out)
+        "--lease-ms", str(DEFAULT_LEASE_MS), "--dead-after", f"{DEFAULT_DEAD_AFTER_S:g}",
+        *deaths)
 
 
 async def run_trial(trial: Trial, workdir: Path) -> Outcome:
