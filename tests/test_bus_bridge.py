@@ -3,19 +3,22 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 import logging
 import signal
 import subprocess
 import sys
 import threading
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable, Iterator
+from typing import Any
 
 import pytest
 
 from bus import keys
-from bus.bridge import BoundedFifo, Bus, LatestWins
+from bus.bridge import BoundedFifo, Bus, LatestWins, Received, Subscription
 from bus.config import ConnectionSettings
+from bus.inbox import Inbox
 from bus.messages import AdminCommand, AdminReply, Heartbeat, Progress, RobotEvent, RobotStatus
 
 pytestmark = pytest.mark.integration
@@ -106,6 +109,42 @@ async def test_slow_consumer_does_not_block_and_drops_are_counted(bus: Bus, othe
     assert bus.drops.total("progress", "overflow") == 290
 
 
+@contextlib.contextmanager
+def held(inbox: Inbox[Any]) -> Iterator[threading.Event]:
+    """Hold every hand-over into ``inbox`` (on its declaration's thread) until the block
+    ends; yields the event set once one is held."""
+    entered, release = threading.Event(), threading.Event()
+
+    def hold(key: str, item: object) -> None:
+        entered.set()
+        release.wait(20.0)
+
+    inbox.push = hold  # type: ignore[method-assign]
+    try:
+        yield entered
+    finally:
+        release.set()
+
+
+async def hears_every_one(other: Bus, fast: Subscription[Progress], entered: threading.Event,
+                          publish_held: Callable[[], None]) -> None:
+    """``fast`` hears, then a hand-over is held (``publish_held`` brings one on), then
+    ``fast`` hears 50 more all the same."""
+    mission = other.mission
+    async with asyncio.timeout(5.0):
+        while fast.try_recv() is None:  # both declarations have reached the router
+            other.publish(keys.progress(mission, 2), progress(0, robot=2))
+            await asyncio.sleep(0.05)
+        while not entered.is_set():
+            publish_held()
+            await asyncio.sleep(0.05)
+    for seq in range(1, 51):
+        other.publish(keys.progress(mission, 2), progress(seq, robot=2))
+    async with asyncio.timeout(5.0):
+        while (await fast.recv()).msg.seq < 50:
+            pass
+
+
 async def test_a_stalled_subscription_holds_back_no_other_on_the_link(
         bus: Bus, other: Bus) -> None:
     # bus.handoff: Zenoh's receive thread hands samples over and reads on. Had it run the
@@ -113,29 +152,9 @@ async def test_a_stalled_subscription_holds_back_no_other_on_the_link(
     # subscription would hear nothing, and the link would expire after its lease.
     stuck = bus.subscribe(keys.progress(bus.mission, 1), Progress)
     fast = bus.subscribe(keys.progress(bus.mission, 2), Progress)
-    entered, release = threading.Event(), threading.Event()
-
-    def hold(key: str, raw: bytes) -> None:  # on the subscription's hand-over thread
-        entered.set()
-        release.wait(20.0)
-
-    stuck._inbox.push = hold  # type: ignore[method-assign,assignment]
-    try:
-        async with asyncio.timeout(5.0):
-            while fast.try_recv() is None:  # both declarations have reached the router
-                other.publish(keys.progress(bus.mission, 2), progress(0, robot=2))
-                await asyncio.sleep(0.05)
-            while not entered.is_set():
-                other.publish(keys.progress(bus.mission, 1), progress(0))
-                await asyncio.sleep(0.05)
-        for seq in range(1, 51):
-            other.publish(keys.progress(bus.mission, 2), progress(seq, robot=2))
-        async with asyncio.timeout(5.0):
-            while (await fast.recv()).msg.seq < 50:
-                pass
-        assert not release.is_set()  # the first subscription is still stuck
-    finally:
-        release.set()
+    with held(stuck._inbox) as entered:
+        await hears_every_one(other, fast, entered, lambda: other.publish(
+            keys.progress(bus.mission, 1), progress(0)))
 
 
 async def test_a_stalled_queryable_holds_back_no_subscription_on_the_link(
@@ -144,31 +163,11 @@ async def test_a_stalled_queryable_holds_back_no_subscription_on_the_link(
     key = keys.hw_cmd(bus.mission, 0)
     handle = bus.declare_queryable(key, lambda _request: None)
     fast = bus.subscribe(keys.progress(bus.mission, 2), Progress)
-    entered, release = threading.Event(), threading.Event()
-
-    def hold(key: str, query: object) -> None:  # on the queryable's hand-over thread
-        entered.set()
-        release.wait(20.0)
-
-    handle._inbox.push = hold  # type: ignore[method-assign,assignment]
-    try:
-        async with asyncio.timeout(5.0):
-            while fast.try_recv() is None:
-                other.publish(keys.progress(bus.mission, 2), progress(0, robot=2))
-                await asyncio.sleep(0.05)
-        asked = asyncio.ensure_future(other.query(key, None, AdminReply, timeout=3.0))
-        async with asyncio.timeout(5.0):
-            while not entered.is_set():
-                await asyncio.sleep(0.02)
-        for seq in range(1, 51):
-            other.publish(keys.progress(bus.mission, 2), progress(seq, robot=2))
-        async with asyncio.timeout(5.0):
-            while (await fast.recv()).msg.seq < 50:
-                pass
-        assert not release.is_set()
-    finally:
-        release.set()
-    assert await asked == []  # held past its timeout: no answer
+    asked: list[asyncio.Future[list[Received[AdminReply]]]] = []
+    with held(handle._inbox) as entered:
+        await hears_every_one(other, fast, entered, lambda: asked.append(asyncio.ensure_future(
+            other.query(key, None, AdminReply, timeout=3.0))))
+    assert [await answer for answer in asked] == [[]] * len(asked)  # held: never answered
 
 
 def test_a_process_that_never_undeclares_still_exits() -> None:
