@@ -236,7 +236,7 @@ class Bus:
                                             handler)
         if not recover and on_miss is None:
             sub._declared = [handed_off(
-                lambda channel: self.session.declare_subscriber(key, channel),
+                lambda handler: self.session.declare_subscriber(key, handler),
                 sub._on_sample, key)]
         else:
             report = MissReport(key, self.drops, self.loop, on_miss)
@@ -329,7 +329,7 @@ class Bus:
             self.loop, self.drops, key, max_queue,
             lambda query: self.answer(key, query, responder, request_type))
         handle._zenoh = handed_off(
-            lambda channel: self.session.declare_queryable(key, channel), handle._on_query, key)
+            lambda handler: self.session.declare_queryable(key, handler), handle._on_query, key)
         self._closables.append(handle)
         return handle
 
@@ -395,8 +395,8 @@ class Bus:
         """Watch tokens matching ``key``; existing tokens are reported first as puts."""
         watch = LivelinessWatch(self.loop, self.drops, key, on_put, on_delete)
         watch._zenoh = handed_off(
-            lambda channel: self.session.liveliness().declare_subscriber(
-                key, channel, history=True), watch._on_sample, f"tokens {key}")
+            lambda handler: self.session.liveliness().declare_subscriber(
+                key, handler, history=True), watch._on_sample, f"tokens {key}")
         self._closables.append(watch)
         return watch
 

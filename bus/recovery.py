@@ -130,8 +130,8 @@ def declare_recovering_subscriber(session: zenoh.Session, key_expr: str,
     for what it missed; ``on_miss(source id, count)`` (on a Zenoh thread) for samples no
     cache held. Returns the subscriber and its miss listener (undeclare both)."""
     subscriber = handed_off(
-        lambda channel: zenoh.ext.declare_advanced_subscriber(
-            session, key_expr, channel,
+        lambda handler: zenoh.ext.declare_advanced_subscriber(
+            session, key_expr, handler,
             history=zenoh.ext.HistoryConfig(detect_late_publishers=True,
                                             max_samples=HISTORY_SAMPLES),
             recovery=zenoh.ext.RecoveryConfig(heartbeat=True, periodic_queries=None)),
@@ -159,7 +159,7 @@ def declare_recovering(session: zenoh.Session, key_expr: str, mission: str,
         if not depth(str(sample.key_expr)):
             on_sample(sample)
 
-    declared.append(handed_off(lambda channel: session.declare_subscriber(key_expr, channel),
+    declared.append(handed_off(lambda handler: session.declare_subscriber(key_expr, handler),
                                on_plain, key_expr))
     return declared
 
