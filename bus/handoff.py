@@ -23,7 +23,6 @@ and at 0.46 x the CPU per message as when Zenoh's thread ran the hand-over.
 from __future__ import annotations
 
 import logging
-import threading
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -38,35 +37,16 @@ def handed_off(declare: Callable[[zenoh.handlers.Callback[Any]], D],
                on_item: Callable[[Any], None], name: str) -> D:
     """``declare(handler)`` (a subscriber, advanced subscriber or queryable): Zenoh's
     receive thread queues each item for a thread of the declaration's own, which passes it
-    to ``on_item``. That thread is a daemon: a process that exits without undeclaring does
-    not wait for it (see _declared_from_a_daemon)."""
-    handler: zenoh.handlers.Callback[Any] = zenoh.handlers.Callback(
-        lambda item: _deliver(on_item, item, name), indirect=True)
-    return _declared_from_a_daemon(lambda: declare(handler), name)
+    to ``on_item``.
 
-
-def _declared_from_a_daemon(declare: Callable[[], D], name: str) -> D:
-    """Runs ``declare`` on a short-lived daemon thread and returns what it declared.
-    zenoh-python starts an ``indirect`` callback's thread from the declaring thread, which
-    it inherits daemon-ness from: declared from the loop's (main) thread, it was a
-    non-daemon thread, and a process that ended without undeclaring waited for it forever
-    at exit. (Such a process now ends with pyo3's abort when the thread wakes during
-    finalization; a Bus undeclares everything before that.)"""
-    declared: list[D] = []
-    failed: list[BaseException] = []
-
-    def run() -> None:
-        try:
-            declared.append(declare())
-        except BaseException as error:  # noqa: BLE001 - re-raised on the caller's thread
-            failed.append(error)
-
-    thread = threading.Thread(target=run, name=f"declare {name}", daemon=True)
-    thread.start()
-    thread.join()
-    if failed:
-        raise failed[0]
-    return declared[0]
+    That thread ends when the declaration is undeclared (or its session closed), and it is
+    not a daemon: the interpreter waits for it at exit. Undeclare before exiting (a Bus
+    does, on leaving its ``async with``), or the process waits forever. As a daemon (tried)
+    it was worse: a thread still waking from its undeclaration while the interpreter
+    finalized was killed inside pyo3, which aborts the process ("FATAL: exception not
+    rethrown": an agent that had completed its mission exited on SIGABRT in CI)."""
+    return declare(zenoh.handlers.Callback(lambda item: _deliver(on_item, item, name),
+                                           indirect=True))
 
 
 def _deliver(on_item: Callable[[Any], None], item: Any, name: str) -> None:

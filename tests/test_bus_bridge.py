@@ -170,22 +170,6 @@ async def test_a_stalled_queryable_holds_back_no_subscription_on_the_link(
     assert [await answer for answer in asked] == [[]] * len(asked)  # held: never answered
 
 
-def test_a_process_that_never_undeclares_still_exits() -> None:
-    # zenoh-python's hand-over thread is a daemon only when declared from a daemon thread: a
-    # non-daemon one kept a process that never closed its session alive forever at exit
-    script = ("import zenoh\n"
-              "from bus.handoff import handed_off\n"
-              "config = zenoh.Config()\n"
-              "config.insert_json5('scouting/multicast/enabled', 'false')\n"
-              "session = zenoh.open(config)\n"
-              "handed_off(lambda handler: session.declare_subscriber('t/**', handler),\n"
-              "           print, 't/**')\n"
-              "print('declared', flush=True)\n")
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          timeout=30)
-    assert "declared" in done.stdout, done.stderr
-
-
 def test_a_process_that_closes_its_bus_exits_cleanly(router: str) -> None:
     script = ("import asyncio, sys\n"
               "from bus import keys\n"
