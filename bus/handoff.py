@@ -15,9 +15,9 @@ idle. A channel of our own drained by our own thread was tried first: zenoh-pyth
 receive wakes every 0.1 s to check for signals, and a 100-agent fleet's 1 200 such threads
 stalled before its first move (one run of benchmarks/bench_fleet.py big --robots 100,
 load average 543). Past 256 items waiting, Zenoh's thread waits again: a declaration's
-thread that far behind is starved, not slow. Measured side by
-side (benchmarks/bench_handoff.py): a burst into one subscription is received 2.3 x as fast
-and at 0.46 x the CPU per message as when Zenoh's thread ran the hand-over.
+thread that far behind is starved, not slow. Measured side by side
+(benchmarks/bench_handoff.py): a burst into one subscription is received 2.3 x as fast and
+at 0.46 x the CPU per message as when Zenoh's thread ran the hand-over.
 """
 
 from __future__ import annotations

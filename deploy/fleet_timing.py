@@ -41,9 +41,10 @@ CROWDED_DEAD_AFTER_S = 5.0
 # and on a host whose cores are all taken the scheduler leaves a thread runnable but waiting
 # for up to a second at a time (12 agents on 2 cores, city:60x60:1: the router's threads
 # waited on the run queue 0.6-1.0 s in their worst seconds). A 1 s lease then expired
-# between a healthy agent and the router in 5 of 12 missions, and the robot was declared
+# between a healthy agent and the router in 6 of 13 missions, and the robot was declared
 # dead by its token. Beyond this many agents per core a flat-out fleet gets the crowded
-# lease and heartbeat timeout (0 of 8 lost with them; docs/operations.md, "Flat out").
+# lease and heartbeat timeout (0 of 8 lost with them and bus.handoff; docs/operations.md,
+# "Flat out").
 FLAT_OUT_AGENTS_PER_CORE = 4
 HEARTBEAT_BUDGET = 2500.0  # heartbeat deliveries per second per core
 ANNOUNCE_BUDGET = 1000.0  # re-announced statuses delivered per second per core
@@ -110,7 +111,8 @@ def agent_niceness(robots: int, cores: int | None = None) -> int:
 
 
 def starved_flat_out(robots: int, cores: int | None = None) -> bool:
-    """A fleet at time scale 0 with more than FLAT_OUT_AGENTS_PER_CORE agents per core."""
+    """More than FLAT_OUT_AGENTS_PER_CORE agents per core: too many, at time scale 0, for
+    the agents' own lease and heartbeat timeout."""
     return robots > FLAT_OUT_AGENTS_PER_CORE * core_count(cores)
 
 
